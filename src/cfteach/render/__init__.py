@@ -1,0 +1,121 @@
+"""Pictures of grids and demonstrations in the study's visual language.
+
+Layers: `scene` (what is on the grid: `Layout` + state -> `Scene`), `shapes` (scene ->
+drawing primitives), then writers: `svg`, `raster` (PNG, `rgb_array`, GIF), `text` (one
+character per cell). `belief` draws regions of reward weights on the sphere (matplotlib).
+
+Typical use::
+
+    from cfteach import domains, render
+    inst = domains.load("delivery").instances()[5]
+    print(render.text_of(inst, inst.initial_state))
+    render.save(inst, inst.initial_state, "start.svg")
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from cfteach.render.raster import save_gif, save_png, to_image, to_rgb_array
+from cfteach.render.scene import (
+    Layout,
+    Scene,
+    SceneObject,
+    layout_from_instance,
+    scene_from_state_json,
+    trail_of,
+)
+from cfteach.render.svg import to_svg
+from cfteach.render.text import legend, to_text
+
+__all__ = [
+    "Layout",
+    "Scene",
+    "SceneObject",
+    "demo_frames",
+    "layout_from_instance",
+    "legend",
+    "save",
+    "save_demo",
+    "save_gif",
+    "save_png",
+    "scene_from_state_json",
+    "scene_of",
+    "text_of",
+    "to_image",
+    "to_rgb_array",
+    "to_svg",
+    "to_text",
+    "trail_of",
+]
+
+
+def _state_json(instance: Any, state: Any) -> Mapping[str, Any]:
+    if isinstance(state, Mapping):
+        return state
+    return instance.state_to_json(state)
+
+
+def scene_of(instance: Any, state: Any, trail: Sequence[Sequence[int]] = ()) -> Scene:
+    """The scene of an instance in `state` (a State tuple or its JSON dict)."""
+    return scene_from_state_json(
+        layout_from_instance(instance), _state_json(instance, state), trail
+    )
+
+
+def text_of(instance: Any, state: Any, trail: Sequence[Sequence[int]] = (), **kw: Any) -> str:
+    """One character per cell (see `cfteach.render.text`)."""
+    return to_text(scene_of(instance, state, trail), **kw)
+
+
+def save(
+    instance: Any,
+    state: Any,
+    path: str | Path,
+    *,
+    trail: Sequence[Sequence[int]] = (),
+    cell_px: int = 48,
+) -> Path:
+    """Write one state as `.svg`, `.png` or `.txt`, chosen by the file suffix."""
+    return _write(scene_of(instance, state, trail), Path(path), cell_px)
+
+
+def _write(scene: Scene, path: Path, cell_px: int) -> Path:
+    suffix = path.suffix.lower()
+    if suffix == ".svg":
+        path.write_text(to_svg(scene, cell_px), encoding="utf-8")
+    elif suffix == ".png":
+        save_png(scene, path, cell_px)
+    elif suffix == ".txt":
+        path.write_text(to_text(scene) + "\n", encoding="utf-8")
+    else:
+        raise ValueError(f"{path}: unknown picture format {suffix!r}; use .svg, .png or .txt")
+    return path
+
+
+def demo_frames(layout: Layout, states: Sequence[Mapping[str, Any]]) -> list[Scene]:
+    """One scene per state of a demonstration, each with the trail walked so far."""
+    if not states:
+        raise ValueError("a demonstration needs at least one state")
+    frames = []
+    for k, s in enumerate(states):
+        frames.append(scene_from_state_json(layout, s, trail_of(states[: k + 1]), done=False))
+    return frames
+
+
+def save_demo(
+    layout: Layout,
+    states: Sequence[Mapping[str, Any]],
+    path: str | Path,
+    *,
+    cell_px: int | None = None,
+    frame_ms: int = 450,
+) -> Path:
+    """A demonstration as an animated `.gif`, or its last frame (full trail) as `.png`/`.svg`."""
+    path = Path(path)
+    frames = demo_frames(layout, states)
+    if path.suffix.lower() == ".gif":
+        return save_gif(frames, path, cell_px or 32, frame_ms=frame_ms)
+    return _write(frames[-1], path, cell_px or 48)

@@ -1,0 +1,272 @@
+"""Belief pictures: a region of reward weights on the unit sphere (the paper's Fig. 3), and
+belief area after each demonstration for the four conditions of a domain.
+
+Shading is computed from the constraints directly and vectorised: a face of the sphere mesh
+is inside a region iff its centre `p` satisfies `normals @ p >= 0` for every normal. Region
+boundaries are drawn exactly, as the arcs of each constraint's great circle that satisfy all
+the other constraints, so even regions smaller than one mesh face stay visible.
+Uses matplotlib's Agg backend (no display needed).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+CONDITION_ORDER = ("baseline", "feature_only", "counterfactual_only", "proposed")
+CONDITION_COLORS = {
+    "baseline": "#7f7f7f",
+    "feature_only": "#1f77b4",
+    "counterfactual_only": "#ff7f0e",
+    "proposed": "#2ca02c",
+}
+BELIEF_COLOR = np.array([0.30, 0.69, 0.31, 0.85])  # green, as in the paper's Fig. 4
+BEC_COLOR = np.array([0.99, 0.85, 0.21, 0.85])  # yellow
+BOTH_COLOR = np.array([0.55, 0.62, 0.10, 0.95])  # where they overlap
+OUTSIDE_COLOR = np.array([0.85, 0.87, 0.90, 0.35])
+
+
+def _normals(constraints: Any, name: str) -> np.ndarray:
+    """Constraint rows as a float array `[k, 3]`; a clear error for anything else."""
+    arr = np.asarray(constraints, dtype=float)
+    if arr.size == 0:
+        return np.zeros((0, 3))
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(
+            f"{name}: the sphere picture needs 3 features, i.e. constraints of shape [k, 3]; "
+            f"got shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: constraints contain non-finite values")
+    return arr
+
+
+def inside(normals: np.ndarray, points: np.ndarray, tol: float = 0.0) -> np.ndarray:
+    """Boolean mask over `points[..., 3]`: every constraint `n . p >= -tol` holds."""
+    if len(normals) == 0:
+        return np.ones(points.shape[:-1], dtype=bool)
+    return np.all(points @ normals.T >= -tol, axis=-1)
+
+
+def sphere_mesh(resolution: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices `[r+1, 2r+1, 3]` of a latitude/longitude mesh and unit face centres `[r, 2r, 3]`."""
+    theta = np.linspace(0.0, np.pi, resolution + 1)  # polar angle
+    phi = np.linspace(-np.pi, np.pi, 2 * resolution + 1)  # azimuth
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    verts = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1)
+    centres = (verts[:-1, :-1] + verts[1:, :-1] + verts[:-1, 1:] + verts[1:, 1:]) / 4.0
+    norms = np.linalg.norm(centres, axis=-1, keepdims=True)
+    return verts, centres / np.maximum(norms, 1e-12)
+
+
+def boundary_arcs(normals: np.ndarray, n_points: int = 720) -> list[np.ndarray]:
+    """The region's edges: for each constraint, the points of its great circle inside all others."""
+    arcs = []
+    t = np.linspace(0.0, 2 * np.pi, n_points, endpoint=False)
+    for i, n in enumerate(normals):
+        norm = np.linalg.norm(n)
+        if norm == 0:
+            continue
+        n = n / norm
+        helper = np.eye(3)[np.argmin(np.abs(n))]
+        u = np.cross(n, helper)
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        circle = np.cos(t)[:, None] * u + np.sin(t)[:, None] * v
+        others = np.delete(normals, i, axis=0)
+        keep = inside(others, circle, tol=1e-9)
+        if not keep.any():
+            continue
+        # Split into contiguous runs (the circle is closed, so rotate to start at a gap).
+        if keep.all():
+            arcs.append(np.vstack([circle, circle[:1]]))
+            continue
+        start = int(np.argmin(keep))
+        order = np.roll(np.arange(n_points), -start)
+        run: list[int] = []
+        for idx in order:
+            if keep[idx]:
+                run.append(idx)
+            elif run:
+                arcs.append(circle[run])
+                run = []
+        if run:
+            arcs.append(circle[run])
+    return arcs
+
+
+def _view_of(direction: np.ndarray) -> tuple[float, float]:
+    d = direction / np.linalg.norm(direction)
+    elev = float(np.degrees(np.arcsin(np.clip(d[2], -1, 1))))
+    azim = float(np.degrees(np.arctan2(d[1], d[0])))
+    return elev, azim
+
+
+def plot_belief_sphere(
+    belief: Any,
+    *,
+    bec: Any = None,
+    w_true: Sequence[float] | None = None,
+    samples: Any = None,
+    feature_names: Sequence[str] = ("w0", "w1", "w2"),
+    title: str | None = None,
+    resolution: int = 72,
+    ax: Any = None,
+    view: tuple[float, float] | None = None,
+) -> Any:
+    """Draw a belief region (green) on the unit sphere, optionally a BEC region (yellow), the
+    true weights (red star) and sampled human models (red dots). Returns the Figure."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    if resolution < 8:
+        raise ValueError(f"resolution must be at least 8, got {resolution}")
+    nb = _normals(belief, "belief")
+    ne = _normals(bec, "bec") if bec is not None else None
+    verts, centres = sphere_mesh(resolution)
+    in_b = inside(nb, centres)
+    colors = np.broadcast_to(OUTSIDE_COLOR, centres.shape[:-1] + (4,)).copy()
+    colors[in_b] = BELIEF_COLOR
+    if ne is not None:
+        in_e = inside(ne, centres)
+        colors[in_e & ~in_b] = BEC_COLOR
+        colors[in_e & in_b] = BOTH_COLOR
+    # plot_surface takes one colour per vertex grid cell: pad the face array by one row/col.
+    face_colors = np.zeros(verts.shape[:-1] + (4,))
+    face_colors[:-1, :-1] = colors
+
+    if view is None:
+        direction = None
+        if w_true is not None:
+            direction = np.asarray(w_true, dtype=float)
+        elif in_b.any():
+            direction = centres[in_b].mean(axis=0)
+        if direction is None or np.linalg.norm(direction) < 1e-9:
+            direction = np.array([1.0, -1.0, 0.6])
+        elev, azim = _view_of(direction)
+        # Look slightly from the side so the sphere reads as 3-D, the region still in front.
+        view = (max(-55.0, min(55.0, elev + 18.0)), azim + 28.0)
+    el, az = np.radians(view[0]), np.radians(view[1])
+    eye = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+
+    def front(points: np.ndarray) -> np.ndarray:
+        return points @ eye > 0.02
+
+    if ax is None:
+        fig = plt.figure(figsize=(3.6, 3.6), dpi=100)
+        ax = fig.add_subplot(projection="3d", computed_zorder=False)
+        fig.subplots_adjust(left=0, right=1, bottom=0, top=0.92 if title else 1.0)
+    else:
+        fig = ax.figure
+    ax.plot_surface(
+        verts[..., 0],
+        verts[..., 1],
+        verts[..., 2],
+        facecolors=face_colors,
+        rstride=1,
+        cstride=1,
+        linewidth=0,
+        antialiased=False,
+        shade=False,
+    )
+    # Only what faces the viewer is drawn on top of the surface (draw order = call order).
+    lift = 1.01
+    for normals, color, style in ((ne, "#b8860b", "--"), (nb, "#1b5e20", "-")):
+        if normals is None:
+            continue
+        for arc in boundary_arcs(normals):
+            vis = front(arc)
+            pts = np.where(vis[:, None], arc * lift, np.nan)
+            ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], color=color, linewidth=1.6, ls=style)
+    if samples is not None:
+        s = np.asarray(samples, dtype=float).reshape(-1, 3)
+        s = s / np.linalg.norm(s, axis=1, keepdims=True)
+        s = s[front(s)] * lift
+        ax.scatter(s[:, 0], s[:, 1], s[:, 2], color="#d62728", s=12, depthshade=False)
+    for k, name in enumerate(list(feature_names)[:3]):
+        axis = np.eye(3)[k]
+        if axis @ eye > -0.2:  # a stub for each positive axis that is not hidden
+            ax.plot(*zip(1.0 * axis, 1.3 * axis, strict=True), color="#444444", lw=1.0)
+        ax.text(*(1.42 * axis), f"+{name}", fontsize=8, ha="center", va="center")
+    if w_true is not None:
+        w = np.asarray(w_true, dtype=float)
+        w = w / np.linalg.norm(w)
+        if front(w[None])[0]:
+            ax.scatter(*(w[:, None] * lift), color="#b71c1c", marker="*", s=110, depthshade=False)
+        ax.text(*(w * 1.18), "w*", color="#b71c1c", fontsize=9, ha="center")
+    ax.view_init(elev=view[0], azim=view[1])
+    ax.set_box_aspect((1, 1, 1), zoom=1.45)
+    ax.set_xlim(-1.05, 1.05)
+    ax.set_ylim(-1.05, 1.05)
+    ax.set_zlim(-1.05, 1.05)
+    ax.set_axis_off()
+    if title:
+        ax.set_title(title, fontsize=10)
+    return fig
+
+
+def belief_area_series(curriculum: Mapping[str, Any]) -> tuple[list[int], list[float]]:
+    """(demo counts, areas): the prior's area at 0 (when cfteach.geometry can compute it),
+    then `belief_area_after` of each demonstration."""
+    xs: list[int] = []
+    ys: list[float] = []
+    prior = curriculum.get("prior")
+    if prior is not None:
+        try:
+            from cfteach.geometry import Region
+
+            xs.append(0)
+            ys.append(float(Region(np.asarray(prior, dtype=float)).area()))
+        except Exception:  # the prior point is optional decoration
+            xs, ys = [], []
+    for i, demo in enumerate(curriculum.get("demos", []), start=1):
+        xs.append(i)
+        ys.append(float(demo["belief_area_after"]))
+    return xs, ys
+
+
+def plot_belief_areas(
+    curricula: Mapping[str, Mapping[str, Any]],
+    *,
+    title: str | None = None,
+    ax: Any = None,
+) -> Any:
+    """Belief area (steradians, log scale) after each demonstration, one line per condition."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(5.0, 3.2), dpi=100)
+    else:
+        fig = ax.figure
+    ordered = [c for c in CONDITION_ORDER if c in curricula] + [
+        c for c in curricula if c not in CONDITION_ORDER
+    ]
+    for k, cond in enumerate(ordered):
+        xs, ys = belief_area_series(curricula[cond])
+        color = CONDITION_COLORS.get(cond, f"C{k}")
+        ax.plot(xs, ys, marker="o", ms=4, lw=1.6, color=color, label=cond, alpha=0.9)
+    ax.set_yscale("log")
+    ax.set_xlabel("demonstrations shown")
+    ax.set_ylabel("belief area (sr)")
+    ax.xaxis.get_major_locator().set_params(integer=True)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8, frameon=False)
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def save_figure(fig: Any, path: Any, *, dpi: int = 100) -> None:
+    """Save and close a figure (closing matters when a report draws dozens)."""
+    import matplotlib.pyplot as plt
+
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
