@@ -1,0 +1,371 @@
+"""The generic gridworld engine: `Domain` (a family of instances) and `Instance` (one MDP).
+
+All three study domains, and any user domain, run through this one engine; what differs is
+only the data in the domain file (see docs/domains.md). The semantics follow the reference
+spec §1-§2 exactly: 1-based coordinates with y up, blocked moves leave the state unchanged,
+features are computed per transition (s, a, s').
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from cfteach.domains.spec import MOVES, Cell, Condition, DomainSpec
+
+State = tuple[int, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class Domain:
+    """A family of gridworld instances sharing reward features, w* and beliefs."""
+
+    spec: DomainSpec = field(repr=False)
+    name: str
+    title: str
+    description: str
+    feature_names: tuple[str, ...]
+    feature_labels: tuple[str, ...]
+    weights: np.ndarray = field(repr=False)  # [F], unit L2 norm
+    weights_raw: np.ndarray = field(repr=False)  # [F], as written in the file
+    prior: np.ndarray = field(repr=False)  # int [k, F], c . w >= 0
+    posterior: np.ndarray = field(repr=False)  # int [k, F]
+    actions: tuple[str, ...]
+    width: int
+    height: int
+    source: str
+
+    @classmethod
+    def from_spec(cls, spec: DomainSpec) -> Domain:
+        raw = np.array([f.weight for f in spec.features], dtype=float)
+        w = raw / np.linalg.norm(raw)
+        f = len(spec.features)
+        prior = np.array(spec.prior, dtype=np.int64).reshape(-1, f)
+        post = np.array(spec.posterior, dtype=np.int64).reshape(-1, f)
+        for arr in (raw, w, prior, post):
+            arr.setflags(write=False)
+        return cls(
+            spec=spec, name=spec.name, title=spec.title, description=spec.description,
+            feature_names=tuple(x.name for x in spec.features),
+            feature_labels=tuple(x.label for x in spec.features),
+            weights=w, weights_raw=raw, prior=prior, posterior=post, actions=spec.actions,
+            width=spec.width, height=spec.height, source=spec.source,
+        )
+
+    @property
+    def n_features(self) -> int:
+        return len(self.feature_names)
+
+    @property
+    def n_bits(self) -> int:
+        return len(self.spec.variants)
+
+    @property
+    def walls(self) -> frozenset[Cell]:
+        return self.spec.walls
+
+    @property
+    def reference_name(self) -> str | None:
+        return self.spec.reference_name
+
+    def instances(self) -> list[Instance]:
+        """All instances, index i = binary number of env_code with bit 0 most significant."""
+        return list(self._instances)
+
+    def instance(self, env: int | tuple[int, ...] | list[int]) -> Instance:
+        """One instance by index or by env code."""
+        insts = self._instances
+        if isinstance(env, int | np.integer):
+            if not 0 <= env < len(insts):
+                raise IndexError(f"{self.name}: instance index {env} out of range "
+                                 f"0..{len(insts) - 1}")
+            return insts[int(env)]
+        code = tuple(int(b) for b in env)
+        if len(code) != self.n_bits or any(b not in (0, 1) for b in code):
+            raise ValueError(f"{self.name}: env_code must be {self.n_bits} bits of 0/1, "
+                             f"got {list(env)}")
+        return insts[int("".join(map(str, code)) or "0", 2)]
+
+    @cached_property
+    def _instances(self) -> tuple[Instance, ...]:
+        return tuple(Instance(self, i, code) for i, code in
+                     enumerate(itertools.product((0, 1), repeat=self.n_bits)))
+
+    def n_demonstrations(self) -> int:
+        """Candidate demonstrations = reachable non-terminal states over all instances."""
+        return sum(len(inst.states()) for inst in self._instances)
+
+
+class Instance:
+    """One MDP of a domain: its static layout is fixed by `env_code` (the variant bits).
+
+    State layout (a tuple of ints): ``(ax, ay)``, then ``(cx, cy, held)`` if the domain declares
+    a cargo (all zero in instances where the cargo is switched off), then one present-bit per
+    consumable declared by the domain.
+    """
+
+    def __init__(self, domain: Domain, index: int, env_code: tuple[int, ...]) -> None:
+        spec = domain.spec
+        self.domain = domain
+        self.index = index
+        self.env_code = tuple(env_code)
+        on = [v for v, b in zip(spec.variants, env_code, strict=True) if b]
+        sets: dict[str, list[Cell]] = {k: list(v) for k, v in spec.cells}
+        switched_by_some = {o for v in spec.variants for o in v.switch_on}
+        switched_on = {o for v in on for o in v.switch_on}
+        for v in on:
+            for sname, cells in v.add_cells:
+                sets[sname].extend(cells)
+        self._cells = {k: frozenset(v) for k, v in sets.items()}
+        self.complexity = sum(len(c) for v in on for _, c in v.add_cells) + len(switched_on)
+
+        def present(obj: str) -> bool:
+            return obj not in switched_by_some or obj in switched_on
+
+        self.walls: frozenset[Cell] = spec.walls
+        self.has_cargo_slot = spec.cargo is not None
+        self.cargo_present = spec.cargo is not None and present(spec.cargo.name)
+        self.consumables_present = tuple(present(n) for n, _ in spec.consumables)
+        self._blocked = (self._cells[spec.cargo.blocked_cells_when_carried]
+                         if spec.cargo and spec.cargo.blocked_cells_when_carried else frozenset())
+        self._n_cons = len(spec.consumables)
+        self._cons_cells = tuple(c for _, c in spec.consumables)
+        self._cons_names = tuple(n for n, _ in spec.consumables)
+        self._feature_fns = [self._compile_feature(f.any_of) for f in spec.features]
+        self._unless = [f.unless for f in spec.features]
+        self._move = [MOVES.get(a) for a in spec.actions]
+        self._action_names = spec.actions
+        self._spec = spec
+
+        init: list[int] = list(spec.agent_start)
+        if self.has_cargo_slot:
+            init += [*spec.cargo.start, 0] if self.cargo_present else [0, 0, 0]
+        init += [1 if p else 0 for p in self.consumables_present]
+        self.initial_state: State = tuple(init)
+        if self.is_terminal(self.initial_state):
+            raise ValueError(f"{spec.source}: instance {self.env_code}: the initial state is "
+                             "already terminal")
+
+    def __repr__(self) -> str:
+        return (f"Instance({self.domain.name!r}, index={self.index}, "
+                f"env_code={list(self.env_code)})")
+
+    # ----------------------------------------------------------------- layout
+    def cells(self, name: str) -> frozenset[Cell]:
+        """The cells of a named cell set in this instance (defaults + switched-on variants)."""
+        try:
+            return self._cells[name]
+        except KeyError:
+            raise KeyError(f"{self.domain.name}: no cell set {name!r} "
+                           f"(known: {', '.join(sorted(self._cells)) or 'none'})") from None
+
+    @property
+    def cell_set_names(self) -> tuple[str, ...]:
+        return tuple(self._cells)
+
+    # -------------------------------------------------------------- dynamics
+    def is_terminal(self, state: State) -> bool:
+        spec = self._spec
+        if spec.goal_kind == "agent_at":
+            return (state[0], state[1]) == spec.goal
+        return (self.cargo_present and state[4] == 0
+                and (state[2], state[3]) == spec.goal)
+
+    def _compile_feature(self, any_of: tuple[Condition, ...]) -> Callable[..., bool]:
+        if not any_of:
+            return lambda a, moved, carrying, cell, consumed: True
+        tests = [self._compile_condition(cond) for cond in any_of]
+        return lambda *ctx: any(t(*ctx) for t in tests)
+
+    def _compile_condition(self, cond: Condition) -> Callable[..., bool]:
+        from_set = self._cells[cond.from_cells] if cond.from_cells else None
+        leave_set = self._cells[cond.leaves_cells] if cond.leaves_cells else None
+        cons_i = self._cons_names.index(cond.consumes) if cond.consumes else None
+
+        def test(a: str, moved: bool, carrying: bool, cell: Cell, consumed: list[int]) -> bool:
+            if cond.actions is not None and a not in cond.actions:
+                return False
+            if cond.moved is not None and moved != cond.moved:
+                return False
+            if cond.carrying is not None and carrying != cond.carrying:
+                return False
+            if from_set is not None and cell not in from_set:
+                return False
+            if leave_set is not None and not (moved and cell in leave_set):
+                return False
+            return not (cons_i is not None and cons_i not in consumed)
+
+        return test
+
+    def step(self, state: State, action: int) -> tuple[State, np.ndarray, bool]:
+        """Apply action (index into the domain's actions): (next state, phi[F], terminal)."""
+        n_f = len(self._feature_fns)
+        if self.is_terminal(state):
+            return state, np.zeros(n_f), True
+        s = list(state)
+        ax, ay = s[0], s[1]
+        held = bool(self.has_cargo_slot and s[4])
+        name = self._action_names[action]
+        delta = self._move[action]
+        if delta is not None:
+            nx, ny = ax + delta[0], ay + delta[1]
+            if (1 <= nx <= self._spec.width and 1 <= ny <= self._spec.height
+                    and (nx, ny) not in self.walls
+                    and not (held and (nx, ny) in self._blocked)):
+                s[0], s[1] = nx, ny
+                if held:
+                    s[2], s[3] = nx, ny
+        elif name == "pickup":
+            if self.cargo_present and not held and (s[2], s[3]) == (ax, ay):
+                s[4] = 1
+        elif name == "dropoff":
+            if held:
+                s[4] = 0
+        moved = (s[0], s[1]) != (ax, ay)
+        consumed: list[int] = []
+        if moved:
+            off = 5 if self.has_cargo_slot else 2
+            for i in range(self._n_cons):
+                if s[off + i] and self._cons_cells[i] == (ax, ay):
+                    s[off + i] = 0
+                    consumed.append(i)
+        phi = np.zeros(n_f)
+        fired = [False] * n_f
+        cell = (ax, ay)
+        for i, fn in enumerate(self._feature_fns):
+            if any(fired[j] for j in self._unless[i]):
+                continue
+            if fn(name, moved, held, cell, consumed):
+                fired[i] = True
+                phi[i] = 1.0
+        nxt = tuple(s)
+        return nxt, phi, self.is_terminal(nxt)
+
+    def states(self) -> list[State]:
+        """Reachable non-terminal states, BFS over actions in order, the initial state first."""
+        return list(self._states)
+
+    @cached_property
+    def _states(self) -> tuple[State, ...]:
+        seen = {self.initial_state}
+        order = [self.initial_state]
+        queue = deque(order)
+        n_a = len(self._action_names)
+        while queue:
+            s = queue.popleft()
+            for a in range(n_a):
+                nxt, _, term = self.step(s, a)
+                if not term and nxt not in seen:
+                    seen.add(nxt)
+                    order.append(nxt)
+                    queue.append(nxt)
+        return tuple(order)
+
+    # ------------------------------------------------------------ JSON views
+    def state_to_json(self, state: State) -> dict[str, Any]:
+        """The schema's JSON form: {"agent": [x, y], <cargo>: [x, y] | null, "carrying", ...}."""
+        out: dict[str, Any] = {"agent": [state[0], state[1]]}
+        off = 2
+        if self.has_cargo_slot:
+            out[self._spec.cargo.name] = ([state[2], state[3]] if self.cargo_present else None)
+            out["carrying"] = bool(state[4])
+            off = 5
+        for i, n in enumerate(self._cons_names):
+            out[n] = bool(state[off + i])
+        return out
+
+    def state_from_json(self, data: dict[str, Any]) -> State:
+        """Parse and validate a JSON state for this instance (ValueError names the problem)."""
+        where = f"{self.domain.name} instance {list(self.env_code)}"
+        if not isinstance(data, dict):
+            raise ValueError(f"{where}: a state must be a JSON object, got {type(data).__name__}")
+        expected = {"agent"}
+        if self.has_cargo_slot:
+            expected |= {self._spec.cargo.name, "carrying"}
+        expected |= set(self._cons_names)
+        if set(data) != expected:
+            missing = sorted(expected - set(data))
+            extra = sorted(set(data) - expected)
+            raise ValueError(f"{where}: state keys must be {sorted(expected)}"
+                             + (f"; missing {missing}" if missing else "")
+                             + (f"; unknown {extra}" if extra else ""))
+
+        def cell(key: str) -> Cell:
+            v = data[key]
+            if (not isinstance(v, list | tuple) or len(v) != 2
+                    or any(isinstance(x, bool) or not isinstance(x, int) for x in v)):
+                raise ValueError(f"{where}: {key!r} must be [x, y] integers, got {v!r}")
+            x, y = v
+            if not (1 <= x <= self._spec.width and 1 <= y <= self._spec.height):
+                raise ValueError(f"{where}: {key!r} cell {[x, y]} is off the grid")
+            if (x, y) in self.walls:
+                raise ValueError(f"{where}: {key!r} cell {[x, y]} is on a wall")
+            return (x, y)
+
+        s: list[int] = list(cell("agent"))
+        if self.has_cargo_slot:
+            cname = self._spec.cargo.name
+            carrying = data["carrying"]
+            if not isinstance(carrying, bool):
+                raise ValueError(f"{where}: 'carrying' must be true or false")
+            if data[cname] is None:
+                if self.cargo_present:
+                    raise ValueError(f"{where}: {cname!r} is null but this instance has one")
+                if carrying:
+                    raise ValueError(f"{where}: carrying is true but there is no {cname}")
+                s += [0, 0, 0]
+            else:
+                if not self.cargo_present:
+                    raise ValueError(f"{where}: this instance has no {cname}")
+                c = cell(cname)
+                if carrying and c != (s[0], s[1]):
+                    raise ValueError(f"{where}: carrying is true but the {cname} at {list(c)} "
+                                     f"is not at the agent's cell {s[:2]}")
+                if carrying and c in self._blocked:
+                    raise ValueError(f"{where}: the {cname} cannot be carried on {list(c)}")
+                s += [c[0], c[1], int(carrying)]
+        for i, n in enumerate(self._cons_names):
+            v = data[n]
+            if not isinstance(v, bool):
+                raise ValueError(f"{where}: {n!r} must be true or false")
+            if v and not self.consumables_present[i]:
+                raise ValueError(f"{where}: this instance has no {n}")
+            s.append(int(v))
+        return tuple(s)
+
+    # ------------------------------------------- the reference's tie-break views
+    def _object_ints(self, state: State) -> tuple[list[int], list[int]]:
+        cargo: list[int] = []
+        if self.cargo_present:
+            cargo = [state[2], state[3], state[4]]
+        cons: list[int] = []
+        off = 5 if self.has_cargo_slot else 2
+        for i in range(self._n_cons):
+            if state[off + i]:
+                cons += list(self._cons_cells[i])
+        return cargo, cons
+
+    def state_hash_digits(self, state: State) -> list[int]:
+        """Decimal digits of the reference's state identity string (spec §8.4)."""
+        cargo, cons = self._object_ints(state)
+        ints = [state[0], state[1], *cargo, *cons]
+        return [int(ch) for v in ints for ch in str(v)]
+
+    def state_attribute_tuple(self, state: State) -> list[int]:
+        """The reference's raw attribute tuple of a state (spec §8.4)."""
+        out = [state[0], state[1]]
+        if self.has_cargo_slot:
+            out.append(state[4])
+        if self.cargo_present:
+            out += [state[2], state[3]]
+            if self._spec.goal_kind == "cargo_delivered_at":
+                out += list(self._spec.goal)
+            out.append(state[4])
+        _, cons = self._object_ints(state)
+        return out + cons

@@ -1,0 +1,395 @@
+"""Parse and validate a domain description (TOML text or a plain dict) into a `DomainSpec`.
+
+Validation is strict on purpose: a domain file is written by hand, and a typo in a key or a
+cell on a wall would otherwise silently produce a different MDP. Every error names the file,
+the key path (e.g. ``features[1].when.from_cells``) and the problem.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+ACTIONS: tuple[str, ...] = ("up", "down", "left", "right", "pickup", "dropoff")
+MOVES: dict[str, tuple[int, int]] = {
+    "up": (0, 1), "down": (0, -1), "left": (-1, 0), "right": (1, 0)}
+INTERACT: tuple[str, ...] = ("pickup", "dropoff")
+
+Cell = tuple[int, int]
+
+
+class DomainFileError(ValueError):
+    """A domain file (or dict) is malformed; the message names file, key path and problem."""
+
+    def __init__(self, source: str, key: str, problem: str) -> None:
+        self.source = source
+        self.key = key
+        self.problem = problem
+        where = f"{source}: {key}" if key else source
+        super().__init__(f"{where}: {problem}")
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One conjunction of per-transition tests; unset fields are not tested."""
+
+    actions: frozenset[str] | None = None
+    moved: bool | None = None
+    carrying: bool | None = None
+    from_cells: str | None = None
+    leaves_cells: str | None = None
+    consumes: str | None = None
+
+
+@dataclass(frozen=True)
+class FeatureSpec:
+    name: str
+    label: str
+    weight: float
+    any_of: tuple[Condition, ...]  # OR of conjunctions; empty tuple = always fires
+    unless: tuple[int, ...]  # indices of earlier features that suppress this one
+
+
+@dataclass(frozen=True)
+class VariantSpec:
+    name: str
+    add_cells: tuple[tuple[str, tuple[Cell, ...]], ...]
+    switch_on: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class CargoSpec:
+    name: str
+    start: Cell
+    blocked_cells_when_carried: str | None
+
+
+@dataclass(frozen=True)
+class DomainSpec:
+    """The validated content of a domain file, before instances are built."""
+
+    source: str
+    name: str
+    title: str
+    description: str
+    reference_name: str | None
+    width: int
+    height: int
+    discount: float
+    actions: tuple[str, ...]
+    walls: frozenset[Cell]
+    cells: tuple[tuple[str, tuple[Cell, ...]], ...]  # default content of each named set
+    agent_start: Cell
+    cargo: CargoSpec | None
+    consumables: tuple[tuple[str, Cell], ...]
+    goal_kind: str  # "agent_at" or "cargo_delivered_at"
+    goal: Cell
+    variants: tuple[VariantSpec, ...]
+    features: tuple[FeatureSpec, ...]
+    prior: tuple[tuple[int, ...], ...]
+    posterior: tuple[tuple[int, ...], ...]
+
+
+_TOP_KEYS = {"domain", "cells", "agent", "cargo", "consumables", "goal", "variants", "features",
+             "beliefs"}
+_DOMAIN_KEYS = {"name", "title", "description", "reference_name", "width", "height", "discount",
+                "actions", "walls"}
+_COND_KEYS = {"action", "moved", "carrying", "from_cells", "leaves_cells", "consumes"}
+
+
+class _Checker:
+    """Small helpers that raise `DomainFileError` with the source attached."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, key: str, problem: str) -> DomainFileError:
+        return DomainFileError(self.source, key, problem)
+
+    def table(self, value: Any, key: str, allowed: set[str], required: set[str] = frozenset()
+              ) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.fail(key, f"must be a table, got {type(value).__name__}")
+        for k in value:
+            if k not in allowed:
+                sub = f"{key}.{k}" if key else k
+                raise self.fail(sub, f"unknown key (allowed: {', '.join(sorted(allowed))})")
+        for k in required:
+            if k not in value:
+                sub = f"{key}.{k}" if key else k
+                raise self.fail(sub, "missing required key")
+        return value
+
+    def string(self, value: Any, key: str, *, nonempty: bool = True) -> str:
+        if not isinstance(value, str):
+            raise self.fail(key, f"must be a string, got {type(value).__name__}")
+        if nonempty and not value.strip():
+            raise self.fail(key, "must not be empty")
+        return value
+
+    def integer(self, value: Any, key: str, *, minimum: int | None = None) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(key, f"must be an integer, got {type(value).__name__}")
+        if minimum is not None and value < minimum:
+            raise self.fail(key, f"must be at least {minimum}, got {value}")
+        return value
+
+    def number(self, value: Any, key: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(key, f"must be a number, got {type(value).__name__}")
+        if not math.isfinite(value):
+            raise self.fail(key, f"must be finite, got {value}")
+        return float(value)
+
+    def boolean(self, value: Any, key: str) -> bool:
+        if not isinstance(value, bool):
+            raise self.fail(key, f"must be true or false, got {type(value).__name__}")
+        return value
+
+    def array(self, value: Any, key: str) -> list[Any]:
+        if not isinstance(value, list):
+            raise self.fail(key, f"must be a list, got {type(value).__name__}")
+        return value
+
+    def cell(self, value: Any, key: str, width: int, height: int,
+             walls: frozenset[Cell] = frozenset()) -> Cell:
+        if (not isinstance(value, list | tuple) or len(value) != 2
+                or any(isinstance(v, bool) or not isinstance(v, int) for v in value)):
+            raise self.fail(key, f"must be a cell [x, y] of two integers, got {value!r}")
+        x, y = int(value[0]), int(value[1])
+        if not (1 <= x <= width and 1 <= y <= height):
+            raise self.fail(key, f"cell [{x}, {y}] is off the {width}x{height} grid "
+                                 "(coordinates are 1-based, y up)")
+        if (x, y) in walls:
+            raise self.fail(key, f"cell [{x}, {y}] is on a wall")
+        return (x, y)
+
+    def cells(self, value: Any, key: str, width: int, height: int,
+              walls: frozenset[Cell] = frozenset()) -> tuple[Cell, ...]:
+        items = self.array(value, key)
+        return tuple(self.cell(v, f"{key}[{i}]", width, height, walls) for i, v in enumerate(items))
+
+    def name(self, value: Any, key: str, taken: dict[str, str]) -> str:
+        s = self.string(value, key)
+        if s in taken:
+            raise self.fail(key, f"name {s!r} is already used by {taken[s]}")
+        taken[s] = key
+        return s
+
+
+def load_toml(path: Path) -> dict[str, Any]:
+    """Read a TOML file; syntax errors are reported as `DomainFileError` naming the file."""
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise DomainFileError(str(path), "", f"not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise DomainFileError(str(path), "", f"cannot read file: {exc.strerror}") from None
+
+
+def parse_spec(data: Any, source: str = "<dict>") -> DomainSpec:
+    """Validate a domain description and return its `DomainSpec`."""
+    c = _Checker(source)
+    top = c.table(data, "", _TOP_KEYS, {"domain", "agent", "goal", "features"})
+
+    d = c.table(top["domain"], "domain", _DOMAIN_KEYS, {"name", "width", "height"})
+    name = c.string(d["name"], "domain.name")
+    title = c.string(d.get("title", name), "domain.title")
+    description = c.string(d.get("description", ""), "domain.description", nonempty=False)
+    reference_name = (c.string(d["reference_name"], "domain.reference_name")
+                      if "reference_name" in d else None)
+    width = c.integer(d["width"], "domain.width", minimum=1)
+    height = c.integer(d["height"], "domain.height", minimum=1)
+    discount = c.number(d.get("discount", 1.0), "domain.discount")
+    if discount != 1.0:
+        raise c.fail("domain.discount", f"only 1.0 is supported (undiscounted, as in the "
+                                        f"reference), got {discount}")
+    if "actions" in d:
+        acts = c.array(d["actions"], "domain.actions")
+        if not acts:
+            raise c.fail("domain.actions", "must list at least one action")
+        for i, a in enumerate(acts):
+            if a not in ACTIONS:
+                raise c.fail(f"domain.actions[{i}]",
+                             f"unknown action {a!r} (known: {', '.join(ACTIONS)})")
+        if len(set(acts)) != len(acts):
+            raise c.fail("domain.actions", "lists an action twice")
+        actions = tuple(acts)
+    else:
+        actions = ACTIONS
+    walls = frozenset(c.cells(d.get("walls", []), "domain.walls", width, height))
+
+    taken: dict[str, str] = {"agent": "the agent", "carrying": "the carrying flag"}
+
+    # Named static cell sets.
+    cells_tbl = top.get("cells", {})
+    if not isinstance(cells_tbl, dict):
+        raise c.fail("cells", f"must be a table, got {type(cells_tbl).__name__}")
+    cell_sets: dict[str, tuple[Cell, ...]] = {}
+    for k, v in cells_tbl.items():
+        if not k.strip():
+            raise c.fail("cells", "a cell set needs a non-empty name")
+        cell_sets[k] = c.cells(v, f"cells.{k}", width, height, walls)
+
+    a = c.table(top["agent"], "agent", {"start"}, {"start"})
+    agent_start = c.cell(a["start"], "agent.start", width, height, walls)
+
+    cargo = None
+    if "cargo" in top:
+        t = c.table(top["cargo"], "cargo", {"name", "start", "blocked_cells_when_carried"},
+                    {"name", "start"})
+        cname = c.name(t["name"], "cargo.name", taken)
+        cstart = c.cell(t["start"], "cargo.start", width, height, walls)
+        blocked = None
+        if "blocked_cells_when_carried" in t:
+            blocked = c.string(t["blocked_cells_when_carried"], "cargo.blocked_cells_when_carried")
+            if blocked not in cell_sets:
+                raise c.fail("cargo.blocked_cells_when_carried",
+                             f"unknown cell set {blocked!r} (declare it under [cells])")
+        cargo = CargoSpec(cname, cstart, blocked)
+
+    consumables: list[tuple[str, Cell]] = []
+    for i, t in enumerate(c.array(top.get("consumables", []), "consumables")):
+        key = f"consumables[{i}]"
+        t = c.table(t, key, {"name", "cell"}, {"name", "cell"})
+        consumables.append((c.name(t["name"], f"{key}.name", taken),
+                            c.cell(t["cell"], f"{key}.cell", width, height, walls)))
+    consumable_names = {n for n, _ in consumables}
+    objects = consumable_names | ({cargo.name} if cargo else set())
+
+    g = c.table(top["goal"], "goal", {"agent_at", "cargo_delivered_at"})
+    if len(g) != 1:
+        raise c.fail("goal", "give exactly one of agent_at = [x, y] or cargo_delivered_at = [x, y]")
+    goal_kind = next(iter(g))
+    goal = c.cell(g[goal_kind], f"goal.{goal_kind}", width, height, walls)
+    if goal_kind == "cargo_delivered_at" and cargo is None:
+        raise c.fail("goal.cargo_delivered_at", "needs a [cargo] table")
+    if goal_kind == "agent_at" and goal == agent_start:
+        raise c.fail("goal.agent_at", "the agent starts on the goal")
+
+    variants: list[VariantSpec] = []
+    for i, t in enumerate(c.array(top.get("variants", []), "variants")):
+        key = f"variants[{i}]"
+        t = c.table(t, key, {"name", "add_cells", "switch_on"})
+        vname = c.string(t.get("name", f"bit {i}"), f"{key}.name")
+        adds: list[tuple[str, tuple[Cell, ...]]] = []
+        add_tbl = t.get("add_cells", {})
+        if not isinstance(add_tbl, dict):
+            raise c.fail(f"{key}.add_cells", "must be a table {set_name = [[x, y], ...]}")
+        for sname, lst in add_tbl.items():
+            if sname not in cell_sets:
+                raise c.fail(f"{key}.add_cells.{sname}",
+                             f"unknown cell set {sname!r} (declare it under [cells])")
+            adds.append((sname, c.cells(lst, f"{key}.add_cells.{sname}", width, height, walls)))
+        switch = c.array(t.get("switch_on", []), f"{key}.switch_on")
+        for j, o in enumerate(switch):
+            if o not in objects:
+                raise c.fail(f"{key}.switch_on[{j}]", f"unknown object {o!r} (known: "
+                             f"{', '.join(sorted(objects)) or 'none'})")
+        if not adds and not switch:
+            raise c.fail(key, "a variant must add cells or switch on an object")
+        variants.append(VariantSpec(vname, tuple(adds), tuple(switch)))
+    if len(variants) > 20:
+        raise c.fail("variants", f"{len(variants)} bits give too many instances (at most 20)")
+
+    features: list[FeatureSpec] = []
+    fnames: dict[str, int] = {}
+    for i, t in enumerate(c.array(top["features"], "features")):
+        key = f"features[{i}]"
+        t = c.table(t, key, {"name", "label", "weight", "when", "any", "unless"},
+                    {"name", "weight"})
+        fname = c.string(t["name"], f"{key}.name")
+        if fname in fnames:
+            raise c.fail(f"{key}.name", f"duplicate feature name {fname!r}")
+        label = c.string(t.get("label", fname), f"{key}.label")
+        weight = c.number(t["weight"], f"{key}.weight")
+        if "when" in t and "any" in t:
+            raise c.fail(key, "give either `when` or `any`, not both")
+        if "any" in t:
+            alts = c.array(t["any"], f"{key}.any")
+            if not alts:
+                raise c.fail(f"{key}.any", "must list at least one condition table")
+            any_of = tuple(_condition(c, v, f"{key}.any[{j}]", cell_sets, consumable_names,
+                                      actions) for j, v in enumerate(alts))
+        elif "when" in t:
+            any_of = (_condition(c, t["when"], f"{key}.when", cell_sets, consumable_names,
+                                 actions),)
+        else:
+            any_of = ()
+        unless = []
+        for j, u in enumerate(c.array(t.get("unless", []), f"{key}.unless")):
+            if u not in fnames:
+                raise c.fail(f"{key}.unless[{j}]",
+                             f"{u!r} is not an earlier feature (features are evaluated in order)")
+            unless.append(fnames[u])
+        fnames[fname] = i
+        features.append(FeatureSpec(fname, label, weight, any_of, tuple(unless)))
+    if not features:
+        raise c.fail("features", "must list at least one feature")
+    if all(f.weight == 0.0 for f in features):
+        raise c.fail("features", "the weights are all zero (w* must have a direction)")
+    norm = math.sqrt(sum(f.weight ** 2 for f in features))
+    if not math.isfinite(norm) or norm == 0.0:
+        raise c.fail("features", "the weight vector has no finite unit direction")
+
+    b = c.table(top.get("beliefs", {}), "beliefs", {"prior", "posterior"})
+    prior = _constraints(c, b.get("prior", []), "beliefs.prior", len(features))
+    posterior = _constraints(c, b.get("posterior", []), "beliefs.posterior", len(features))
+
+    return DomainSpec(
+        source=source, name=name, title=title, description=description,
+        reference_name=reference_name, width=width, height=height, discount=discount,
+        actions=actions, walls=walls, cells=tuple(cell_sets.items()), agent_start=agent_start,
+        cargo=cargo, consumables=tuple(consumables), goal_kind=goal_kind, goal=goal,
+        variants=tuple(variants), features=tuple(features), prior=prior, posterior=posterior,
+    )
+
+
+def _condition(c: _Checker, value: Any, key: str, cell_sets: dict[str, Any],
+               consumables: set[str], actions: tuple[str, ...]) -> Condition:
+    t = c.table(value, key, _COND_KEYS)
+    acts = None
+    if "action" in t:
+        raw = t["action"]
+        if raw == "move":
+            raw = [a for a in actions if a in MOVES]
+        elif raw == "interact":
+            raw = [a for a in actions if a in INTERACT]
+        raw = c.array(raw, f"{key}.action")
+        for j, a in enumerate(raw):
+            if a not in actions:
+                raise c.fail(f"{key}.action[{j}]", f"unknown action {a!r} (known: "
+                             f"{', '.join(actions)}, or the words \"move\" / \"interact\")")
+        acts = frozenset(raw)
+    for k in ("from_cells", "leaves_cells"):
+        if k in t:
+            s = c.string(t[k], f"{key}.{k}")
+            if s not in cell_sets:
+                raise c.fail(f"{key}.{k}", f"unknown cell set {s!r} (declare it under [cells])")
+    if "consumes" in t:
+        s = c.string(t["consumes"], f"{key}.consumes")
+        if s not in consumables:
+            raise c.fail(f"{key}.consumes", f"unknown consumable {s!r}")
+    return Condition(
+        actions=acts,
+        moved=c.boolean(t["moved"], f"{key}.moved") if "moved" in t else None,
+        carrying=c.boolean(t["carrying"], f"{key}.carrying") if "carrying" in t else None,
+        from_cells=t.get("from_cells"),
+        leaves_cells=t.get("leaves_cells"),
+        consumes=t.get("consumes"),
+    )
+
+
+def _constraints(c: _Checker, value: Any, key: str, n: int) -> tuple[tuple[int, ...], ...]:
+    rows = c.array(value, key)
+    out = []
+    for i, r in enumerate(rows):
+        r = c.array(r, f"{key}[{i}]")
+        if len(r) != n:
+            raise c.fail(f"{key}[{i}]", f"has {len(r)} entries, the domain has {n} features")
+        out.append(tuple(c.integer(v, f"{key}[{i}][{j}]") for j, v in enumerate(r)))
+    return tuple(out)
