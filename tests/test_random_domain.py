@@ -72,3 +72,27 @@ def test_bad_arguments_are_named(args: tuple, message: str) -> None:
         random_gridworld_dict(*args)
     with pytest.raises(TypeError, match="width must be an int"):
         random_gridworld_dict(5.0, 5, 3, 8, 0)  # type: ignore[arg-type]
+
+
+def test_random_gridworld_loads_as_a_domain_with_reachable_goal() -> None:
+    from cfteach.domains.random import random_gridworld
+
+    dom = random_gridworld(6, 5, 4, 16, 2)
+    data = random_gridworld_dict(6, 5, 4, 16, 2)
+    assert len(dom.instances()) == 16
+    assert dom.feature_names == ("kind1", "kind2", "kind3", "step")
+    raw = np.array([f["weight"] for f in data["features"]])
+    np.testing.assert_allclose(dom.weights, raw / np.linalg.norm(raw))
+    n_free = 6 * 5 - len(data["domain"]["walls"])
+    for inst in dom.instances():
+        states = inst.states()
+        # every free cell but the (terminal) goal is a reachable state
+        assert len(states) == n_free - 1
+        reaches_goal = any(inst.step(s, a)[2] for s in states for a in range(4))
+        assert reaches_goal
+    # bit b switches on the cells of variant b
+    last = dom.instances()[-1]
+    for v in data["variants"]:
+        for kind, cells in v["add_cells"].items():
+            assert {tuple(c) for c in cells} <= set(last.cells(kind))
+    assert dom.instances()[0].cells("kind1") == frozenset()
