@@ -1,7 +1,185 @@
-"""Commands of this family are added as their issues land."""
+"""`cfteach analyze`: the paper's statistics, figures and report from a study export.
+
+One command, two sources: an export directory (`cfteach analyze EXPORT_DIR --out DIR`) or a
+simulated study (`cfteach analyze --synthetic N --out DIR`, which first writes the simulated
+export to DIR/export). Heavy imports happen inside the command so `cfteach --help` stays fast.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
 
 import typer
 
+_EXC = "Exclusions"
+_SYN = "Synthetic data"
+
+
+def _read_manual(path: Path) -> dict[str, str]:
+    import pandas as pd
+
+    df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    if "participant_id" not in df.columns:
+        raise typer.BadParameter(f"{path}: missing column 'participant_id'")
+    reasons = df["reason"] if "reason" in df.columns else pd.Series(["manual"] * len(df))
+    return {
+        pid: (r or "manual exclusion") for pid, r in zip(df["participant_id"], reasons, strict=True)
+    }
+
+
+def analyze(
+    export_dir: Annotated[
+        Path | None,
+        typer.Argument(help="Directory with the study export CSVs (cfteach study export)."),
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Directory for the report.")] = Path(
+        "analysis"
+    ),
+    padjust: Annotated[
+        str,
+        typer.Option(
+            help="Correction of within-subjects post hocs and pairwise tests: "
+            "holm, bonf, sidak, fdr_bh, fdr_by, none."
+        ),
+    ] = "holm",
+    no_figures: Annotated[bool, typer.Option("--no-figures", help="Skip the plots.")] = False,
+    aggregate_sd: Annotated[
+        float,
+        typer.Option(
+            help="Outlier rule 1: proportion correct below mean - k SD (0 disables).",
+            rich_help_panel=_EXC,
+        ),
+    ] = 3.0,
+    item_sd: Annotated[
+        float,
+        typer.Option(
+            help="Outlier rule 2: a reward below the item mean - k SD is low (0 disables).",
+            rich_help_panel=_EXC,
+        ),
+    ] = 3.0,
+    item_count_sd: Annotated[
+        float,
+        typer.Option(
+            help="Outlier rule 2: flag more low rewards than mean + k SD of the counts.",
+            rich_help_panel=_EXC,
+        ),
+    ] = 3.0,
+    counts_among_all: Annotated[
+        bool,
+        typer.Option(
+            "--counts-among-all",
+            help="Rule 2: take count statistics over all "
+            "participants (authors: only those with >= 1 low reward).",
+            rich_help_panel=_EXC,
+        ),
+    ] = False,
+    keep_preview: Annotated[
+        bool,
+        typer.Option("--keep-preview", help="Keep preview/test sessions.", rich_help_panel=_EXC),
+    ] = False,
+    expected_tests: Annotated[
+        int | None,
+        typer.Option(
+            help="Tests a complete participant has (default: the most "
+            "any completed participant has).",
+            rich_help_panel=_EXC,
+        ),
+    ] = None,
+    exclude_file: Annotated[
+        Path | None,
+        typer.Option(
+            help="CSV with participant_id (and optional reason) to exclude by hand.",
+            rich_help_panel=_EXC,
+            exists=True,
+            dir_okay=False,
+        ),
+    ] = None,
+    synthetic: Annotated[
+        int | None,
+        typer.Option(
+            help="Simulate a study of N completed participants instead of reading EXPORT_DIR.",
+            rich_help_panel=_SYN,
+            min=1,
+        ),
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the simulation.", rich_help_panel=_SYN)] = 0,
+    difficulty_effect: Annotated[
+        float,
+        typer.Option(
+            help="Scale of the planted difficulty effect (0 = none).", rich_help_panel=_SYN
+        ),
+    ] = 1.0,
+    interaction: Annotated[
+        float,
+        typer.Option(
+            help="Planted counterfactual x difficulty interaction (logit).", rich_help_panel=_SYN
+        ),
+    ] = 0.35,
+    export_only: Annotated[
+        bool,
+        typer.Option(
+            "--export-only",
+            help="With --synthetic: write the export, skip the analysis.",
+            rich_help_panel=_SYN,
+        ),
+    ] = False,
+) -> None:
+    """Run the paper's analyses on a study export and write report.md, report.html,
+    results.json and figures/ to --out."""
+    if (export_dir is None) == (synthetic is None):
+        raise typer.BadParameter("give either EXPORT_DIR or --synthetic N (exactly one)")
+    if export_only and synthetic is None:
+        raise typer.BadParameter("--export-only needs --synthetic")
+    from cfteach.analysis import (
+        AnalysisConfig,
+        ExclusionConfig,
+        ExportError,
+        SyntheticConfig,
+        generate,
+        write_export,
+    )
+    from cfteach.analysis import analyze as run
+
+    if synthetic is not None:
+        scfg = SyntheticConfig(
+            n_participants=synthetic,
+            seed=seed,
+            difficulty_effect=difficulty_effect,
+            interaction=interaction,
+        )
+        export_dir = write_export(generate(scfg), out / "export")
+        typer.echo(
+            f"wrote simulated export ({synthetic} participants, seed {seed}) to {export_dir}"
+        )
+        if export_only:
+            return
+    try:
+        excl = ExclusionConfig(
+            drop_preview=not keep_preview,
+            expected_tests=expected_tests,
+            aggregate_sd=aggregate_sd or None,
+            item_sd=item_sd or None,
+            item_count_sd=item_count_sd or None,
+            item_counts_among_nonzero=not counts_among_all,
+            manual=_read_manual(exclude_file) if exclude_file else {},
+        )
+        cfg = AnalysisConfig(exclusions=excl, padjust=padjust, figures=not no_figures)
+        results = run(export_dir, out, cfg)
+    except (ExportError, ValueError) as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=2) from exc
+    p = results["participants"]
+    rm = results["h1"]["rm_anova"]
+    from cfteach.analysis.report import fmt_F
+
+    typer.echo(
+        f"{p['n_retained']} of {p['n_sessions']} sessions analysed ({p['n_excluded']} "
+        f"excluded). H1: {fmt_F(rm['df1'], rm['df2'], rm['F'], rm['p'])}."
+    )
+    typer.echo(f"report: {out / 'report.html'}  ({out / 'report.md'}, {out / 'results.json'})")
+
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the `cfteach` app."""
+    """Add `cfteach analyze` to the app."""
+    app.command("analyze")(analyze)

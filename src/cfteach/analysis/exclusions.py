@@ -1,0 +1,211 @@
+"""Which participants enter the analysis, and why the others do not.
+
+Rules run in a fixed order and every excluded participant gets exactly one row naming the
+first rule that removed them. Nothing is hard-coded: the paper's two 3-SD outlier rules have
+their thresholds (and the authors' two implementation choices) as options, and a manual list
+of IDs can be passed with its own reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from cfteach.analysis.io import LIKERT_ITEMS, StudyExport
+
+
+@dataclass(frozen=True)
+class ExclusionConfig:
+    """Options of the exclusion rules (None disables a rule)."""
+
+    drop_preview: bool = True
+    drop_incomplete_status: bool = True  # status other than 'completed'
+    require_complete_data: bool = True  # all tests, both Likert items in every domain
+    expected_tests: int | None = None  # None: the most tests any completed participant has
+    aggregate_sd: float | None = 3.0  # rule 1: proportion correct below mean - k SD
+    item_sd: float | None = 3.0  # rule 2: reward below item mean - k SD ...
+    item_count_sd: float | None = 3.0  # ... on more items than mean + k SD of the counts
+    item_counts_among_nonzero: bool = True  # authors: count stats over participants with >= 1
+    item_means_exclude_flagged: bool = True  # authors: item means without already-flagged IDs
+    manual: dict[str, str] = field(default_factory=dict)  # participant_id -> reason
+
+    def __post_init__(self) -> None:
+        for name in ("aggregate_sd", "item_sd", "item_count_sd"):
+            v = getattr(self, name)
+            if v is not None and not v > 0:
+                raise ValueError(f"{name} must be positive or None, got {v}")
+        if self.expected_tests is not None and self.expected_tests < 1:
+            raise ValueError(f"expected_tests must be >= 1, got {self.expected_tests}")
+
+
+EXCLUSION_COLUMNS = ["participant_id", "condition", "rule", "reason"]
+
+
+def _row(p: pd.Series, rule: str, reason: str) -> dict[str, str]:
+    return {
+        "participant_id": p["participant_id"],
+        "condition": p["condition"],
+        "rule": rule,
+        "reason": reason,
+    }
+
+
+def aggregate_outliers(tests: pd.DataFrame, k: float) -> pd.DataFrame:
+    """Participants whose proportion correct is below mean - k SD (across participants).
+
+    Returns participant_id, value, threshold, mean, sd for the flagged ones.
+    """
+    prop = tests.groupby("participant_id")["optimal"].mean().astype(float)
+    mean, sd = float(prop.mean()), float(prop.std(ddof=1)) if len(prop) > 1 else float("nan")
+    thr = mean - k * sd
+    flagged = prop[prop < thr] if np.isfinite(thr) else prop.iloc[:0]
+    return pd.DataFrame(
+        {
+            "participant_id": flagged.index,
+            "value": flagged.to_numpy(),
+            "threshold": thr,
+            "mean": mean,
+            "sd": sd,
+        }
+    )
+
+
+def item_outliers(
+    tests: pd.DataFrame,
+    k_item: float,
+    k_count: float,
+    *,
+    counts_among_nonzero: bool = True,
+    reference: pd.DataFrame | None = None,
+) -> pd.DataFrame:
+    """Participants with too many rewards far below the item mean (the paper's second rule).
+
+    For each test item (`test_id`) the mean and SD of the raw reward are taken over
+    `reference` (default: `tests` itself); a response is *low* when its reward is below
+    mean - k_item SD. A participant is flagged when their number of low responses exceeds
+    mean + k_count SD of that number, taken over participants with at least one low response
+    (`counts_among_nonzero`, the authors' choice) or over everybody.
+    Returns participant_id, value (count), threshold, mean, sd for the flagged ones.
+    """
+    base = tests if reference is None else reference
+    stats = base.groupby("test_id")["reward"].agg(["mean", "std"])
+    t = tests.join(stats, on="test_id")
+    low = t["reward"] < t["mean"] - k_item * t["std"].fillna(0.0)
+    counts = low.groupby(t["participant_id"]).sum().astype(float)
+    pool = counts[counts > 0] if counts_among_nonzero else counts
+    mean = float(pool.mean()) if len(pool) else float("nan")
+    sd = float(pool.std(ddof=1)) if len(pool) > 1 else float("nan")
+    thr = mean + k_count * sd
+    flagged = counts[counts > thr] if np.isfinite(thr) else counts.iloc[:0]
+    return pd.DataFrame(
+        {
+            "participant_id": flagged.index,
+            "value": flagged.to_numpy(),
+            "threshold": thr,
+            "mean": mean,
+            "sd": sd,
+        }
+    )
+
+
+def apply_exclusions(
+    export: StudyExport, config: ExclusionConfig | None = None
+) -> tuple[StudyExport, pd.DataFrame]:
+    """The retained export and a table of exclusions (participant, condition, rule, reason)."""
+    cfg = config or ExclusionConfig()
+    parts = export.participants
+    out: list[dict[str, str]] = []
+    remaining = parts.copy()
+
+    def drop(mask: pd.Series, rule: str, reason_of) -> None:
+        nonlocal remaining
+        for _, p in remaining[mask].iterrows():
+            out.append(_row(p, rule, reason_of(p)))
+        remaining = remaining[~mask]
+
+    unknown_manual = set(cfg.manual) - set(parts["participant_id"])
+    if unknown_manual:
+        raise ValueError(
+            f"manual exclusion lists unknown participant_id {sorted(unknown_manual)[0]!r}"
+        )
+    if cfg.drop_preview:
+        drop(remaining["is_preview"] == 1, "preview", lambda p: "preview/test session")
+    if cfg.drop_incomplete_status:
+        drop(remaining["status"] != "completed", "status", lambda p: f"status is {p['status']}")
+    if cfg.manual:
+        drop(
+            remaining["participant_id"].isin(cfg.manual),
+            "manual",
+            lambda p: cfg.manual[p["participant_id"]],
+        )
+    if cfg.require_complete_data:
+        ids = remaining["participant_id"]
+        t = export.tests[export.tests["participant_id"].isin(ids)]
+        n_tests = t.groupby("participant_id").size().reindex(ids, fill_value=0)
+        if cfg.expected_tests is not None:
+            expected = cfg.expected_tests
+        else:
+            expected = int(n_tests.max()) if len(n_tests) else 0
+        domains = sorted(set(t["domain"]))
+        lk = export.likert[export.likert["participant_id"].isin(ids)]
+        n_lk = (
+            lk.drop_duplicates(["participant_id", "domain", "item"])
+            .groupby("participant_id")
+            .size()
+            .reindex(ids, fill_value=0)
+        )
+        need_lk = len(domains) * len(LIKERT_ITEMS)
+        drop(
+            remaining["participant_id"].map(n_tests) != expected,
+            "incomplete",
+            lambda p: f"{n_tests[p['participant_id']]} of {expected} test responses",
+        )
+        drop(
+            remaining["participant_id"].map(n_lk) < need_lk,
+            "incomplete",
+            lambda p: f"{n_lk[p['participant_id']]} of {need_lk} Likert answers",
+        )
+    flagged: set[str] = set()
+    if cfg.aggregate_sd is not None:
+        t = export.tests[export.tests["participant_id"].isin(remaining["participant_id"])]
+        agg = aggregate_outliers(t, cfg.aggregate_sd).set_index("participant_id")
+        flagged |= set(agg.index)
+        drop(
+            remaining["participant_id"].isin(agg.index),
+            "aggregate_outlier",
+            lambda p: (
+                f"proportion correct {agg.at[p['participant_id'], 'value']:.3f} < "
+                f"{agg.at[p['participant_id'], 'threshold']:.3f} (mean "
+                f"{agg.at[p['participant_id'], 'mean']:.3f} - {cfg.aggregate_sd:g} SD "
+                f"{agg.at[p['participant_id'], 'sd']:.3f})"
+            ),
+        )
+    if cfg.item_sd is not None and cfg.item_count_sd is not None:
+        t = export.tests[export.tests["participant_id"].isin(remaining["participant_id"])]
+        ref = None
+        if not cfg.item_means_exclude_flagged:
+            ref = export.tests[
+                export.tests["participant_id"].isin(set(remaining["participant_id"]) | flagged)
+            ]
+        items = item_outliers(
+            t,
+            cfg.item_sd,
+            cfg.item_count_sd,
+            counts_among_nonzero=cfg.item_counts_among_nonzero,
+            reference=ref,
+        ).set_index("participant_id")
+        drop(
+            remaining["participant_id"].isin(items.index),
+            "item_outlier",
+            lambda p: (
+                f"{int(items.at[p['participant_id'], 'value'])} test rewards more than "
+                f"{cfg.item_sd:g} SD below the item mean; more than "
+                f"{items.at[p['participant_id'], 'threshold']:.2f} (mean "
+                f"{items.at[p['participant_id'], 'mean']:.2f} + {cfg.item_count_sd:g} SD "
+                f"{items.at[p['participant_id'], 'sd']:.2f})"
+            ),
+        )
+    table = pd.DataFrame(out, columns=EXCLUSION_COLUMNS)
+    return export.subset(list(remaining["participant_id"])), table

@@ -1,0 +1,120 @@
+"""`analyze(export_dir, out_dir)`: load, exclude, compute every statistic, plot, report."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cfteach.analysis.aggregate import Frames, build_frames
+from cfteach.analysis.exclusions import ExclusionConfig, apply_exclusions
+from cfteach.analysis.io import CONDITIONS, StudyExport, load_export
+
+PADJUST_METHODS = ("holm", "bonf", "sidak", "fdr_bh", "fdr_by", "none")
+
+
+@dataclass(frozen=True)
+class AnalysisConfig:
+    """Options of the whole analysis."""
+
+    exclusions: ExclusionConfig = field(default_factory=ExclusionConfig)
+    padjust: str = "holm"  # correction of the within-subjects post hocs and pairwise MWUs
+    figures: bool = True
+
+    def __post_init__(self) -> None:
+        if self.padjust not in PADJUST_METHODS:
+            raise ValueError(
+                f"padjust must be one of {', '.join(PADJUST_METHODS)}, got {self.padjust!r}"
+            )
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def compute_results(
+    export: StudyExport, config: AnalysisConfig | None = None, export_dir: str = ""
+) -> tuple[dict[str, Any], Frames]:
+    """Every statistic of the paper on an export, as one JSON-ready dict (plus the frames)."""
+    import pingouin
+    import scipy
+
+    from cfteach import __version__
+    from cfteach.analysis import stats
+
+    cfg = config or AnalysisConfig()
+    kept, excluded = apply_exclusions(export, cfg.exclusions)
+    if kept.participants.empty:
+        raise ValueError("no participant is left after the exclusions; nothing to analyse")
+    missing = [c for c in CONDITIONS if c not in set(kept.participants["condition"])]
+    if missing:
+        raise ValueError(
+            f"no retained participant in condition(s) {', '.join(missing)}; "
+            "the between-subjects analyses need all four"
+        )
+    frames = build_frames(kept)
+    by_cond = kept.participants["condition"].value_counts()
+    results: dict[str, Any] = {
+        "meta": {
+            "export_dir": str(export_dir),
+            "cfteach_version": __version__,
+            "pingouin_version": pingouin.__version__,
+            "scipy_version": scipy.__version__,
+        },
+        "config": {"exclusions": asdict(cfg.exclusions), "padjust": cfg.padjust},
+        "participants": {
+            "n_sessions": int(len(export.participants)),
+            "n_excluded": int(len(excluded)),
+            "n_retained": int(len(kept.participants)),
+            "retained_by_condition": {c: int(by_cond.get(c, 0)) for c in CONDITIONS},
+            "n_test_responses": int(len(kept.tests)),
+        },
+        "exclusions": excluded.to_dict(orient="records"),
+        "icc": stats.icc_domains(frames),
+        "h1": {
+            "rm_anova": stats.rm_anova_difficulty(frames),
+            "posthoc": stats.posthoc_difficulty(frames, cfg.padjust),
+            "spearman": stats.spearman_confidence(frames),
+        },
+        "mixed": {f: stats.mixed_anova(frames, f) for f in stats.BETWEEN_FACTORS},
+        "likert": stats.likert_tests(frames, cfg.padjust),
+        "exploratory": stats.exploratory(frames),
+    }
+    return _jsonable(results), frames
+
+
+def analyze(
+    export_dir: str | Path, out_dir: str | Path, config: AnalysisConfig | None = None
+) -> dict[str, Any]:
+    """Analyse the study export in `export_dir`; write results.json, report.md/.html and
+    figures/ into `out_dir`. Returns the results dict (the content of results.json)."""
+    cfg = config or AnalysisConfig()
+    export = load_export(export_dir)
+    results, frames = compute_results(export, cfg, str(export_dir))
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figures: dict[str, list[str]] = {}
+    if cfg.figures:
+        from cfteach.analysis.figures import make_figures
+
+        figures = make_figures(frames, results, out / "figures")
+    results["figures"] = {k: [f"figures/{n}" for n in v] for k, v in figures.items()}
+    (out / "results.json").write_text(
+        json.dumps(results, indent=2, allow_nan=False) + "\n", encoding="utf-8"
+    )
+    from cfteach.analysis.report import write_report
+
+    write_report(results, figures, out)
+    return results

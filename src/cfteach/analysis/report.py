@@ -1,0 +1,437 @@
+"""The written report: `report.md` and `report.html` from one list of blocks.
+
+Statistics are written the way the paper writes them ("F(2, 422) = 289.78, p < .001");
+every number shown here is also in `results.json`.
+"""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+from typing import Any
+
+from cfteach.analysis.io import CONDITIONS, DIFFICULTIES, LIKERT_ITEMS
+
+FACTOR_TITLES = {
+    "counterfactual": ("H2", "counterfactual scaffolding"),
+    "feature_scaffolding": ("H3", "feature scaffolding"),
+    "condition": ("H4", "condition (4 levels)"),
+}
+LEVEL_NAMES = {
+    "counterfactual": {"0": "no counterfactual", "1": "counterfactual"},
+    "feature_scaffolding": {"0": "no feature scaffolding", "1": "feature scaffolding"},
+}
+
+
+def fmt_p(p: float | None) -> str:
+    """APA-style p: 'p < .001', 'p = .048', 'p > .999'."""
+    if p is None:
+        return "p = n/a"
+    if p < 0.001:
+        return "p < .001"
+    if p > 0.999:
+        return "p > .999"
+    return "p = " + f"{p:.3f}".lstrip("0")
+
+
+def fmt_df(x: float | None) -> str:
+    if x is None:
+        return "n/a"
+    return str(int(round(x))) if abs(x - round(x)) < 1e-9 else f"{x:.2f}"
+
+
+def fmt_num(x: float | None, digits: int = 2, lead: bool = True) -> str:
+    """A number with `digits` decimals; without the leading zero if `lead` is False."""
+    if x is None:
+        return "n/a"
+    s = f"{x:.{digits}f}"
+    if not lead:
+        s = s.replace("0.", ".", 1) if s.startswith(("0.", "-0.")) else s
+    return s
+
+
+def fmt_F(df1: float | None, df2: float | None, F: float | None, p: float | None) -> str:
+    """'F(2, 422) = 289.78, p < .001'."""
+    return f"F({fmt_df(df1)}, {fmt_df(df2)}) = {fmt_num(F)}, {fmt_p(p)}"
+
+
+def _level(factor: str, lvl: str) -> str:
+    return LEVEL_NAMES.get(factor, {}).get(str(lvl), str(lvl))
+
+
+class Doc:
+    """A tiny document model rendered to both Markdown and HTML."""
+
+    def __init__(self) -> None:
+        self.blocks: list[tuple] = []
+
+    def h(self, level: int, text: str) -> None:
+        self.blocks.append(("h", level, text))
+
+    def p(self, text: str) -> None:
+        self.blocks.append(("p", text))
+
+    def table(self, headers: list[str], rows: list[list[str]]) -> None:
+        self.blocks.append(("table", headers, rows))
+
+    def img(self, src: str, alt: str) -> None:
+        self.blocks.append(("img", src, alt))
+
+    def markdown(self) -> str:
+        out = []
+        for b in self.blocks:
+            if b[0] == "h":
+                out.append("#" * b[1] + " " + b[2])
+            elif b[0] == "p":
+                out.append(b[1])
+            elif b[0] == "table":
+                hdr, rows = b[1], b[2]
+                lines = ["| " + " | ".join(hdr) + " |", "|" + "---|" * len(hdr)]
+                lines += ["| " + " | ".join(c.replace("|", "\\|") for c in r) + " |" for r in rows]
+                out.append("\n".join(lines))
+            elif b[0] == "img":
+                out.append(f"![{b[2]}]({b[1]})")
+        return "\n\n".join(out) + "\n"
+
+    def html(self, title: str) -> str:
+        e = html.escape
+        body = []
+        for b in self.blocks:
+            if b[0] == "h":
+                body.append(f"<h{b[1]}>{e(b[2])}</h{b[1]}>")
+            elif b[0] == "p":
+                body.append(f"<p>{_inline(e(b[1]))}</p>")
+            elif b[0] == "table":
+                head = "".join(f"<th>{e(c)}</th>" for c in b[1])
+                rows = "".join(
+                    "<tr>" + "".join(f"<td>{_inline(e(c))}</td>" for c in r) + "</tr>" for r in b[2]
+                )
+                body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
+            elif b[0] == "img":
+                body.append(
+                    f'<figure><img src="{e(b[1])}" alt="{e(b[2])}">'
+                    f"<figcaption>{e(b[2])}</figcaption></figure>"
+                )
+        css = (
+            "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;"
+            "padding:0 1em;line-height:1.45;color:#222}"
+            "table{border-collapse:collapse;margin:1em 0;font-size:.9em}"
+            "th,td{border:1px solid #ccc;padding:.25em .6em;text-align:left}"
+            "th{background:#f3f3f3}img{max-width:100%}figure{margin:1em 0}"
+            "figcaption{font-size:.85em;color:#555}"
+        )
+        return (
+            '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+            f"<title>{e(title)}</title><style>{css}</style></head><body>\n"
+            + "\n".join(body)
+            + "\n</body></html>\n"
+        )
+
+
+def _inline(escaped: str) -> str:
+    """Markdown **bold** and `code` spans to HTML (the only inline markup we emit)."""
+    import re
+
+    escaped = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", escaped)
+    return re.sub(r"`(.+?)`", r"<code>\1</code>", escaped)
+
+
+def _effects_table(doc: Doc, res: dict[str, Any]) -> None:
+    rows = []
+    for key in ("between", "within", "interaction"):
+        e = res["effects"].get(key)
+        if not e:
+            continue
+        rows.append(
+            [
+                e["source"],
+                fmt_df(e["df1"]),
+                fmt_df(e["df2"]),
+                fmt_num(e["F"]),
+                fmt_p(e["p"]),
+                fmt_p(e["p_gg"]) if e["p_gg"] is not None else "",
+                fmt_num(e["np2"], 3, lead=False),
+            ]
+        )
+    doc.table(["Source", "df1", "df2", "F", "p", "p (GG)", "ηp²"], rows)
+
+
+def _means_table(doc: Doc, factor: str, means: list[dict[str, Any]]) -> None:
+    by = {}
+    for m in means:
+        by.setdefault(m["level"], {})[m["difficulty"]] = m
+    rows = []
+    for lvl, d in by.items():
+        cells = []
+        for diff in DIFFICULTIES:
+            m = d[diff]
+            ci = m["ci95"]
+            cells.append(
+                f"{fmt_num(m['mean'])} [{fmt_num(ci[0])}, {fmt_num(ci[1])}]"
+                if m["mean"] is not None
+                else "n/a"
+            )
+        rows.append([_level(factor, lvl), str(d[DIFFICULTIES[0]]["n"]), *cells])
+    doc.table(["Group", "N", *(f"{d} M [95% CI]" for d in DIFFICULTIES)], rows)
+
+
+def _tukey_table(doc: Doc, factor: str, rows: list[dict], with_diff: bool, holm: bool) -> None:
+    out = []
+    for r in rows:
+        row = [r["difficulty"]] if with_diff else []
+        row += [
+            _level(factor, r["A"]),
+            _level(factor, r["B"]),
+            fmt_num(r["mean_A"]),
+            fmt_num(r["mean_B"]),
+            fmt_num(r["T"]),
+            fmt_p(r["p_tukey"]),
+        ]
+        if holm:
+            row.append(fmt_p(r.get("p_holm_across")))
+        out.append(row)
+    hdr = (["Difficulty"] if with_diff else []) + ["A", "B", "M A", "M B", "T", "p (Tukey)"]
+    if holm:
+        hdr.append("p (Holm across difficulties)")
+    doc.table(hdr, out)
+
+
+def _mwu_sentence(name_x: str, name_y: str, r: dict[str, Any]) -> str:
+    return (
+        f"U(N_{name_x} = {r['n_x']}, N_{name_y} = {r['n_y']}) = {fmt_num(r['U'], 1)}, "
+        f"{fmt_p(r['p'])}, r_rb = {fmt_num(r['rbc'], 2, lead=False)} "
+        f"(Mdn {fmt_num(r['median_x'], 1)} vs {fmt_num(r['median_y'], 1)})"
+    )
+
+
+def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Doc:
+    """The report as a `Doc` (rendered by `write_report`)."""
+    doc = Doc()
+    meta = results["meta"]
+    doc.h(1, "Study analysis report")
+    doc.p(
+        f"Export: `{meta['export_dir']}`. Generated by cfteach {meta['cfteach_version']} with "
+        f"pingouin {meta['pingouin_version']}, scipy {meta['scipy_version']}. "
+        "All numbers are also in `results.json`. Tests are two-sided; α = .05."
+    )
+    part = results["participants"]
+    doc.h(2, "Participants and exclusions")
+    doc.p(
+        f"{part['n_sessions']} sessions in the export; {part['n_retained']} participants "
+        f"retained ({', '.join(f'{c}: {n}' for c, n in part['retained_by_condition'].items())})."
+    )
+    exc = results["exclusions"]
+    if exc:
+        by_rule: dict[str, int] = {}
+        for e in exc:
+            by_rule[e["rule"]] = by_rule.get(e["rule"], 0) + 1
+        doc.p("Excluded by rule: " + ", ".join(f"{k}: {v}" for k, v in by_rule.items()) + ".")
+        doc.table(
+            ["participant_id", "condition", "rule", "reason"],
+            [[e["participant_id"], e["condition"], e["rule"], e["reason"]] for e in exc],
+        )
+    else:
+        doc.p("No participant was excluded.")
+    doc.p(
+        "Rules and thresholds: "
+        + ", ".join(f"{k} = {v}" for k, v in results["config"]["exclusions"].items())
+        + "."
+    )
+
+    icc = results["icc"]
+    doc.h(2, "Consistency across domains (ICC)")
+    doc.p(
+        f"Mean-rating (k = {icc['k']}), two-way mixed, consistency ICC over "
+        f"{icc['n_targets']} participants: ICC = {fmt_num(icc['icc'])}, 95% CI "
+        f"[{fmt_num(icc['ci95'][0])}, {fmt_num(icc['ci95'][1])}], "
+        + fmt_F(icc["df1"], icc["df2"], icc["F"], icc["p"])
+        + "."
+    )
+    doc.table(
+        ["Domain", "M proportion optimal"],
+        [[d, fmt_num(v)] for d, v in icc["per_domain_mean"].items()],
+    )
+
+    h1 = results["h1"]
+    rm = h1["rm_anova"]
+    doc.h(2, "H1: test difficulty")
+    doc.p(
+        "A one-way repeated-measures ANOVA on the proportion of optimal responses: "
+        + fmt_F(rm["df1"], rm["df2"], rm["F"], rm["p"])
+        + f", η²G = {fmt_num(rm['ng2'], 2, lead=False)} (N = {rm['n_participants']} "
+        f"participants, {rm['n_observations']} test responses). Mauchly's W = "
+        f"{fmt_num(rm['mauchly_W'])}, {fmt_p(rm['mauchly_p'])}; Greenhouse-Geisser "
+        f"ε = {fmt_num(rm['eps_gg'])}, corrected {fmt_p(rm['p_gg'])}."
+    )
+    doc.table(
+        ["Difficulty", "N", "M", "SD", "95% CI"],
+        [
+            [
+                d,
+                str(m["n"]),
+                fmt_num(m["mean"]),
+                fmt_num(m["sd"]),
+                f"[{fmt_num(m['ci95'][0])}, {fmt_num(m['ci95'][1])}]",
+            ]
+            for d, m in rm["means"].items()
+        ],
+    )
+    ph = h1["posthoc"]["paired"]
+    doc.p(f"Post hoc: paired t-tests (within-subjects), {ph['padjust']} correction.")
+    doc.table(
+        [
+            "A",
+            "B",
+            "M A",
+            "M B",
+            f"t({fmt_df(ph['rows'][0]['dof']) if ph['rows'] else ''})",
+            "p (unc.)",
+            f"p ({ph['padjust']})",
+            "Hedges g",
+        ],
+        [
+            [
+                r["A"],
+                r["B"],
+                fmt_num(r["mean_A"]),
+                fmt_num(r["mean_B"]),
+                fmt_num(r["T"]),
+                fmt_p(r["p_unc"]),
+                fmt_p(r["p_corr"]),
+                fmt_num(r["hedges"]),
+            ]
+            for r in ph["rows"]
+        ],
+    )
+    at = h1["posthoc"]["authors_tukey"]
+    doc.p(
+        "For comparison, the **authors' variant**: Tukey HSD treating the "
+        f"{at['n_observations']} participant × difficulty means as independent groups "
+        "(it ignores the pairing, so its p values are not valid for a within factor)."
+    )
+    doc.table(
+        ["A", "B", "M A", "M B", "T", "p (Tukey)"],
+        [
+            [
+                r["A"],
+                r["B"],
+                fmt_num(r["mean_A"]),
+                fmt_num(r["mean_B"]),
+                fmt_num(r["T"]),
+                fmt_p(r["p_tukey"]),
+            ]
+            for r in at["rows"]
+        ],
+    )
+    sp = h1["spearman"]
+    doc.p(
+        "Spearman's rank correlation of confidence (median per participant × difficulty) "
+        f"with difficulty: r_s = {fmt_num(sp['r'], 2, lead=False)}, {fmt_p(sp['p'])}, "
+        f"N = {sp['n']}. Median confidence: "
+        + ", ".join(
+            f"{d} {fmt_num(v, 1)}" for d, v in sp["confidence_median_by_difficulty"].items()
+        )
+        + "."
+    )
+    if "confidence" in figures:
+        doc.img(f"figures/{figures['confidence'][0]}", "Confidence by test difficulty")
+
+    for factor, (hyp, label) in FACTOR_TITLES.items():
+        res = results["mixed"][factor]
+        doc.h(2, f"{hyp}: difficulty × {label}")
+        inter, betw = res["effects"]["interaction"], res["effects"]["between"]
+        doc.p(
+            f"Two-way mixed ANOVA (N = {res['n_participants']}; "
+            + ", ".join(f"{_level(factor, k)}: {v}" for k, v in res["n_by_level"].items())
+            + "). Interaction: "
+            + fmt_F(inter["df1"], inter["df2"], inter["F"], inter["p"])
+            + f"; main effect of {label}: "
+            + fmt_F(betw["df1"], betw["df2"], betw["F"], betw["p"])
+            + "."
+        )
+        _effects_table(doc, res)
+        _means_table(doc, factor, res["means"])
+        doc.p(
+            "Simple effects at each difficulty: Tukey HSD between groups on that difficulty's "
+            "participant means (two groups: equal to Student's t-test); the last column "
+            "adjusts across the three difficulties (Holm)."
+        )
+        _tukey_table(doc, factor, res["simple_effects"]["rows"], with_diff=True, holm=True)
+        if "overall_pairwise" in res:
+            doc.p(
+                "Overall pairwise comparison of conditions (Tukey HSD on each participant's "
+                "mean over all tests, one value per participant)."
+            )
+            _tukey_table(doc, factor, res["overall_pairwise"]["rows"], False, False)
+        lk = results["likert"]
+        if factor in ("counterfactual", "feature_scaffolding"):
+            names = ("without", "with")
+            for item in LIKERT_ITEMS:
+                doc.p(
+                    f"{item.replace('_', ' ').capitalize()} (Mann-Whitney U, per-participant "
+                    "median over domains): " + _mwu_sentence(*names, lk[item][factor]) + "."
+                )
+        else:
+            for item in LIKERT_ITEMS:
+                kw = lk[item]["condition"]
+                doc.p(
+                    f"{item.replace('_', ' ').capitalize()}: Kruskal-Wallis H({fmt_df(kw['df'])})"
+                    f" = {fmt_num(kw['H'])}, {fmt_p(kw['p'])}, N = {kw['n']}; medians "
+                    + ", ".join(f"{c} {fmt_num(kw['medians'][c], 1)}" for c in CONDITIONS)
+                    + "."
+                )
+                doc.table(
+                    ["A", "B", "U", "p (unc.)", f"p ({lk['padjust']})", "Mdn A", "Mdn B"],
+                    [
+                        [
+                            r["A"],
+                            r["B"],
+                            fmt_num(r["U"], 1),
+                            fmt_p(r["p"]),
+                            fmt_p(r["p_corr"]),
+                            fmt_num(r["median_x"], 1),
+                            fmt_num(r["median_y"], 1),
+                        ]
+                        for r in lk[item]["condition_pairwise"]["rows"]
+                    ],
+                )
+    if "interaction" in figures:
+        doc.img(
+            f"figures/{figures['interaction'][0]}",
+            "Proportion optimal by difficulty and group (mean, 95% CI)",
+        )
+    if "likert" in figures:
+        doc.img(f"figures/{figures['likert'][0]}", "Likert ratings by condition")
+
+    doc.h(2, "Exploratory measures")
+    for res in results["exploratory"].values():
+        if "skipped" in res:
+            doc.p(f"{res['label']}: skipped ({res['skipped']}).")
+            continue
+        rows = []
+        for factor in ("counterfactual", "feature_scaffolding", "condition"):
+            a = res[factor]
+            ms = ", ".join(
+                f"{_level(factor, k)} {fmt_num(v['mean'])}" for k, v in a["means"].items()
+            )
+            rows.append(
+                [
+                    factor,
+                    fmt_F(a["df1"], a["df2"], a["F"], a["p"]),
+                    fmt_num(a["np2"], 3, lead=False),
+                    ms,
+                ]
+            )
+        doc.p(
+            f"**{res['label']}** (per-participant mean; one-way ANOVA, N = "
+            f"{res['condition']['n']}):"
+        )
+        doc.table(["Factor", "Test", "ηp²", "Means"], rows)
+    return doc
+
+
+def write_report(results: dict[str, Any], figures: dict[str, list[str]], out_dir: Path) -> None:
+    """Write report.md and report.html into `out_dir`."""
+    doc = build_document(results, figures)
+    (out_dir / "report.md").write_text(doc.markdown(), encoding="utf-8")
+    (out_dir / "report.html").write_text(doc.html("Study analysis report"), encoding="utf-8")
