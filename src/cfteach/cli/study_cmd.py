@@ -1,7 +1,152 @@
-"""Commands of this family are added as their issues land."""
+"""`cfteach serve` and `cfteach study init|export|progress`: run the user study."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
 
 import typer
+
+study_app = typer.Typer(help="Create a study folder, export its data, watch its progress.",
+                        no_args_is_help=True)
+
+DEFAULT_DOMAINS = ("delivery", "tiles", "skateboard")
+
+
+def _sources_from_dir(src: Path, domains: list[str]):  # noqa: ANN202
+    from cfteach.domains import load
+    from cfteach.study.build import CONDITIONS, DomainSource
+
+    out = []
+    for name in domains:
+        folder = src / name
+        if not folder.is_dir():
+            raise typer.BadParameter(f"{folder} does not exist (expected the output of "
+                                     "`cfteach reproduce --out DIR`)")
+        cur = {}
+        for cond in CONDITIONS:
+            p = folder / f"{cond}.json"
+            if not p.exists():
+                raise typer.BadParameter(f"missing curriculum {p}")
+            cur[cond] = json.loads(p.read_text())
+        tp = folder / "tests.json"
+        if not tp.exists():
+            raise typer.BadParameter(f"missing test set {tp}")
+        out.append(DomainSource(load(name), cur, json.loads(tp.read_text())))
+    return out
+
+
+def _sources_generated(domains: list[str], profile: str, seed: int):  # noqa: ANN202
+    from cfteach.domains import load
+    from cfteach.study.build import CONDITIONS, DomainSource
+    from cfteach.teaching import select_tests, teach
+
+    out = []
+    for name in domains:
+        dom = load(name)
+        curricula = {c: teach(dom, c, profile=profile, seed=seed, progress=True)
+                     for c in CONDITIONS}
+        tests = select_tests(dom, training=tuple(curricula.values()), profile=profile,
+                             seed=seed, progress=True)
+        out.append(DomainSource(dom, {c: k.to_json() for c, k in curricula.items()},
+                                tests.to_json()))
+    return out
+
+
+@study_app.command("init")
+def init(
+    out: Path = typer.Option(..., "--out", help="Study folder to create."),
+    source: Path | None = typer.Option(None, "--from", help="Output folder of `cfteach "
+                                       "reproduce` (DIR/<domain>/<condition>.json, tests.json)."),
+    toy: bool = typer.Option(False, "--toy", help="A tiny 3-domain study for trying things."),
+    domains: str = typer.Option(",".join(DEFAULT_DOMAINS), help="Comma-separated domains."),
+    profile: str = typer.Option("default", help="Teaching profile when generating."),
+    seed: int = typer.Option(0, help="Seed when generating curricula and tests."),
+    title: str = typer.Option("Machine Teaching Study", help="Page title."),
+    completion_code: str = typer.Option("COMPLETED", help="Prolific completion code."),
+    screened_out_code: str = typer.Option("SCREENED", help="Code for screened-out people."),
+    completion_url: str = typer.Option("https://app.prolific.com/submissions/complete?cc=",
+                                       help="Redirect target; the code is appended. '' = none."),
+    demo_step_ms: int = typer.Option(500, help="Milliseconds per demonstration step."),
+    cutoff_minutes: float = typer.Option(30.0, help="An idle session stops counting toward "
+                                         "its assignment cell after this long."),
+) -> None:
+    """Write a study folder (study.json) from curricula and test sets."""
+    from cfteach.study.build import init_study, toy_sources
+
+    names = [d.strip() for d in domains.split(",") if d.strip()]
+    if toy:
+        sources = toy_sources()
+    elif source is not None:
+        sources = _sources_from_dir(source, names)
+    else:
+        sources = _sources_generated(names, profile, seed)
+    path = init_study(out, sources, title=title, completion_code=completion_code,
+                      screened_out_code=screened_out_code, completion_url=completion_url,
+                      demo_step_ms=demo_step_ms, cutoff_minutes=cutoff_minutes)
+    typer.echo(f"wrote {path}")
+
+
+@study_app.command("export")
+def export(
+    db: str = typer.Option(..., "--db", help="Database URL, e.g. sqlite:///study/study.db"),
+    out: Path = typer.Option(..., "--out", help="Folder for the CSV files."),
+    include_previews: bool = typer.Option(False, help="Also export preview/test sessions."),
+) -> None:
+    """Write tidy CSVs (participants, test responses, Likert, demo views) + dictionary."""
+    from cfteach.study.export import export_csv
+
+    counts = export_csv(db, out, include_previews=include_previews)
+    for name, n in counts.items():
+        typer.echo(f"{out / name}: {n} rows")
+
+
+@study_app.command("progress")
+def progress(
+    study: Path = typer.Option(Path("study"), "--study", help="Study folder."),
+    db: str | None = typer.Option(None, "--db", help="Database URL (default: in the folder)."),
+) -> None:
+    """Print how full each assignment cell is."""
+    from cfteach.study.config import load_study
+    from cfteach.study.db import make_engine, upgrade
+    from cfteach.study.service import StudyService
+
+    engine = make_engine(db or f"sqlite:///{study / 'study.db'}")
+    upgrade(engine)
+    p = StudyService(engine, load_study(study)).progress()
+    typer.echo(f"study {p['study_version']}: {p['status']} (previews: {p['previews']})")
+    for c in p["cells"]:
+        typer.echo(f"{c['condition']:<20} {c['domain_order']:<28} set {c['test_set']}  "
+                   f"occupied {c['occupied']}  completed {c['completed']}")
+
+
+def serve(
+    study: Path = typer.Option(Path("study"), "--study", help="Study folder from "
+                               "`cfteach study init`."),
+    db: str | None = typer.Option(None, "--db", help="Database URL (default: SQLite file "
+                                  "study.db in the study folder; postgresql+psycopg://...)."),
+    host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
+    port: int = typer.Option(8000, help="Port."),
+    researcher_token: str | None = typer.Option(
+        None, envvar="CFTEACH_RESEARCHER_TOKEN",
+        help="Token for /researcher (random if unset; printed at start)."),
+) -> None:
+    """Run the study server (participants open /?PROLIFIC_PID=...&STUDY_ID=...&SESSION_ID=...)."""
+    import secrets
+
+    import uvicorn
+
+    from cfteach.study.server import create_app
+
+    token = researcher_token or secrets.token_urlsafe(16)
+    app = create_app(study, db, researcher_token=token)
+    typer.echo(f"researcher page: http://{host}:{port}/researcher?token={token}", err=True)
+    uvicorn.run(app, host=host, port=port, log_level=os.environ.get("CFTEACH_LOG", "info"),
+                access_log=False)
 
 
 def register(app: typer.Typer) -> None:
     """Add this module's commands to the `cfteach` app."""
+    app.command("serve")(serve)
+    app.add_typer(study_app, name="study")

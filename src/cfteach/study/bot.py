@@ -1,0 +1,101 @@
+"""A simulated participant that walks the whole study through the HTTP API.
+
+Used by the tests and by `bench/bench_study_load.py`; `client` is anything with httpx's
+`get`/`post` (an `httpx.Client` on a live server or FastAPI's `TestClient`).
+"""
+
+from __future__ import annotations
+
+import random
+import uuid
+from typing import Any
+
+from .games import best_path, shortest_path
+
+
+class BotError(RuntimeError):
+    pass
+
+
+def run_participant(client: Any, params: dict, *, study: dict | None = None,
+                    rng: random.Random | None = None, stop_after: int | None = None,
+                    fail_practice: bool = False) -> dict:
+    """Go from consent to completion; returns the final state and what was answered.
+
+    With `study` (the server's study.json) the bot plays tests optimally; without it, it
+    takes the shortest way to the end. `stop_after` stops after that many advancing steps.
+    """
+    rng = rng or random.Random(0)
+    r = client.post("/api/session", json=params)
+    _ok(r)
+    token = r.json()["token"]
+    headers = {"X-Session-Token": token}
+    answers: dict[str, Any] = {"token": token, "tests": [], "likert": [], "events": 0}
+
+    def send(step: int, type_: str, payload: dict) -> dict:
+        resp = client.post("/api/event", headers=headers, json={
+            "event_id": uuid.uuid4().hex, "step_index": step, "type": type_,
+            "payload": payload})
+        _ok(resp)
+        answers["events"] += 1
+        return resp.json()
+
+    st = client.get("/api/state", headers=headers).json()
+    advanced = 0
+    while st["status"] == "in_progress" and st["step"]["kind"] != "complete":
+        if stop_after is not None and advanced >= stop_after:
+            break
+        i, s = st["step_index"], st["step"]
+        kind = s["kind"]
+        if kind == "consent":
+            out = send(i, "consent", {"adult": True, "read": True, "agree": True})
+        elif kind == "practice":
+            moves = ["up"] if fail_practice else best_path(s["game"], s["weights"])
+            if fail_practice:
+                moves = shortest_path(s["game"])
+            out = send(i, "practice_attempt", {"actions": moves, "time_ms": 1000})
+        elif kind == "demos":
+            for k in range(len(s["demos"])):
+                if s["completed"][k] < 1:
+                    send(i, "demo_play_start", {"demo_index": k})
+                    send(i, "demo_play_end", {"demo_index": k, "completed": True,
+                                              "watch_ms": 100})
+            out = send(i, "continue", {})
+        elif kind == "survey":
+            inf, eff = rng.randint(1, 5), rng.randint(1, 5)
+            answers["likert"].append((s["domain"], inf, eff))
+            out = send(i, "likert", {"informativeness": inf, "mental_effort": eff})
+        elif kind == "test":
+            if study is not None:
+                t = _find_test(study, s)
+                moves = best_path(t["game"], study["domain_info"][s["domain"]]["weights"])
+            else:
+                moves = shortest_path(s["game"])
+            conf = rng.randint(1, 5)
+            answers["tests"].append((s["domain"], s["trial"], moves, conf))
+            out = send(i, "test_response", {"actions": moves, "time_ms": 1234,
+                                            "confidence": conf})
+        elif kind == "demographics":
+            out = send(i, "demographics", {"age": 30, "gender": "Female",
+                                           "education": "High school"})
+        else:
+            out = send(i, "continue", {})
+        st = out["state"]
+        advanced += 1
+    answers["state"] = st
+    return answers
+
+
+def _find_test(study: dict, s: dict) -> dict:
+    # The page does not name the test; match it by its public table (bots only).
+    for test_set in study["tests"][s["domain"]]:
+        for t in test_set:
+            if t["game"]["states"] == s["game"]["states"] and t["layout"] == s["layout"]:
+                return t
+    raise BotError("test not found in study")
+
+
+def _ok(resp: Any) -> None:
+    if resp.status_code != 200:
+        raise BotError(f"{resp.request.method} {resp.request.url} -> {resp.status_code}: "
+                       f"{resp.text[:300]}")

@@ -1,0 +1,270 @@
+"""`cfteach study init`: turn curricula + test sets into a self-contained study folder.
+
+The folder holds one `study.json` with, per domain, every demonstration (states to replay and
+the static layout to draw) and every test as a playable transition table built with the
+domain's own `Instance.step`, so the server needs no teaching code at run time and a running
+study cannot change under the participants' feet.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .games import build_game, is_optimal, optimal_value, public_game, replay
+from .layout import instance_layout
+from .practice import (
+    ACTIONS,
+    PRACTICE,
+    PRACTICE_START_ENERGY,
+    PRACTICE_WEIGHTS,
+    CargoGrid,
+)
+from .texts import domain_text
+
+CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
+LEVELS = ("low", "medium", "high")
+STUDY_SCHEMA = "cfteach.study/1"
+
+
+@dataclass
+class DomainSource:
+    """One domain's inputs: the domain object, a curriculum per condition, its test set."""
+
+    domain: Any
+    curricula: dict[str, dict]
+    tests: dict
+
+
+def init_study(out: str | Path, sources: Iterable[DomainSource], *,
+               title: str = "Machine Teaching Study",
+               completion_code: str = "COMPLETED", screened_out_code: str = "SCREENED",
+               completion_url: str = "https://app.prolific.com/submissions/complete?cc=",
+               test_sets: int = 3, demo_step_ms: int = 500, cutoff_minutes: float = 30.0,
+               practice_attempts: int = 3) -> Path:
+    """Write `out/study.json` and return its path."""
+    sources = list(sources)
+    if not sources:
+        raise ValueError("a study needs at least one domain")
+    domains: list[str] = []
+    info: dict[str, dict] = {}
+    curricula: dict[str, dict] = {}
+    tests: dict[str, list] = {}
+    for src in sources:
+        name = src.domain.name
+        if name in domains:
+            raise ValueError(f"domain {name!r} is given twice")
+        domains.append(name)
+        missing = [c for c in CONDITIONS if c not in src.curricula]
+        if missing:
+            raise ValueError(f"domain {name!r}: no curriculum for condition(s) {missing}")
+        actions = tuple(src.domain.actions)
+        instances = src.domain.instances()
+        text = domain_text(name, tuple(src.domain.feature_names))
+        info[name] = {**text, "feature_names": list(src.domain.feature_names),
+                      "weights": [float(x) for x in src.domain.weights], "actions": list(actions)}
+        curricula[name] = {}
+        for cond in CONDITIONS:
+            cur = src.curricula[cond]
+            _check_schema(cur, "cfteach.curriculum/1", f"{name}/{cond}")
+            if cur.get("domain") != name:
+                raise ValueError(f"curriculum {name}/{cond} is for domain {cur.get('domain')!r}")
+            demos = []
+            for k, d in enumerate(cur["demos"]):
+                inst = _instance(instances, d, f"{name}/{cond} demo {k}")
+                if len(d["states"]) != len(d["actions"]) + 1:
+                    raise ValueError(f"{name}/{cond} demo {k}: states must be actions + 1 long")
+                demos.append({"layout": instance_layout(name, inst), "states": d["states"],
+                              "actions": d["actions"]})
+            if not demos:
+                raise ValueError(f"curriculum {name}/{cond} has no demonstrations")
+            curricula[name][cond] = demos
+        _check_schema(src.tests, "cfteach.tests/1", f"{name}/tests")
+        tests[name] = _split_tests(name, src.tests, instances, actions, info[name]["weights"],
+                                   test_sets)
+    pgame = build_game(PRACTICE, PRACTICE.initial_state, ACTIONS)
+    best = optimal_value(pgame, list(PRACTICE_WEIGHTS))
+    study = {
+        "schema": STUDY_SCHEMA,
+        "title": title,
+        "conditions": list(CONDITIONS),
+        "domains": domains,
+        "test_sets": test_sets,
+        "demo_step_ms": demo_step_ms,
+        "cutoff_minutes": cutoff_minutes,
+        "practice_attempts": practice_attempts,
+        "completion": {"completed": completion_code, "screened_out": screened_out_code,
+                       "url": completion_url},
+        "practice": {"layout": PRACTICE.study_layout(), "game": pgame,
+                     "weights": list(PRACTICE_WEIGHTS), "start_energy": PRACTICE_START_ENERGY,
+                     "target_energy": PRACTICE_START_ENERGY + best},
+        "domain_info": info,
+        "curricula": curricula,
+        "tests": tests,
+    }
+    body = json.dumps(study, sort_keys=True, separators=(",", ":"))
+    study["version"] = hashlib.sha256(body.encode()).hexdigest()[:12]
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "study.json"
+    path.write_text(json.dumps(study, separators=(",", ":")))
+    return path
+
+
+def _check_schema(obj: dict, schema: str, what: str) -> None:
+    if not isinstance(obj, dict) or obj.get("schema") != schema:
+        got = obj.get("schema") if isinstance(obj, dict) else type(obj).__name__
+        raise ValueError(f"{what}: expected schema {schema!r}, got {got!r}")
+
+
+def _instance(instances: list, d: dict, what: str) -> Any:
+    idx = d.get("env_index")
+    if not isinstance(idx, int) or not 0 <= idx < len(instances):
+        raise ValueError(f"{what}: env_index {idx!r} is not one of the domain's "
+                         f"{len(instances)} instances")
+    return instances[idx]
+
+
+def _split_tests(name: str, ts: dict, instances: list, actions: tuple[str, ...],
+                 weights: list[float], n_sets: int) -> list[list[dict]]:
+    """Test set k gets tests [2k, 2k+1] of each difficulty (the paper's 3 alternative pairs)."""
+    sets: list[list[dict]] = [[] for _ in range(n_sets)]
+    for level in LEVELS:
+        items = ts.get("tests", {}).get(level, [])
+        per = len(items) // n_sets
+        if per < 1:
+            raise ValueError(f"{name}/tests: {len(items)} {level} test(s) cannot fill "
+                             f"{n_sets} test sets")
+        for i, t in enumerate(items[: per * n_sets]):
+            what = f"{name}/tests {level}[{i}]"
+            inst = _instance(instances, t, what)
+            start = inst.state_from_json(t["start_state"])
+            game = build_game(inst, start, actions)
+            opt = float(t["optimal_reward"])
+            check = replay(game, weights, list(t["actions"]))
+            if not is_optimal(check.reward, opt, 1e-6):
+                raise ValueError(f"{what}: replaying its optimal actions gives reward "
+                                 f"{check.reward}, not optimal_reward {opt}")
+            sets[i // per].append({
+                "test_id": f"{name}-{level}-{i}", "difficulty": level,
+                "overlap": float(t.get("overlap", float("nan"))),
+                "layout": instance_layout(name, inst), "game": game,
+                "optimal_reward": opt, "optimal_length": len(t["actions"]),
+            })
+    return sets
+
+
+def browser_game(test: dict) -> dict:
+    """A test as the page receives it."""
+    return {"layout": test["layout"], "game": public_game(test["game"])}
+
+
+# ---------------------------------------------------------------------------------------
+# A tiny self-contained study ("toy"), for trying the platform and for its tests.
+
+
+class ToyDomain:
+    """A 4 x 3 delivery-like domain on `CargoGrid`, following the `Domain` contract."""
+
+    actions = ACTIONS
+    feature_names = ("mud", "battery", "step")
+    weights = (-0.635999, 0.741999, -0.211999)
+
+    def __init__(self, name: str = "toy") -> None:
+        self.name = name
+        mud_sets = [frozenset(), frozenset({(2, 2)}), frozenset({(3, 1), (3, 2)}),
+                    frozenset({(2, 1), (3, 3)})]
+        self._instances = [
+            CargoGrid(width=4, height=3, start=(2, 1), walls=frozenset({(1, 2), (1, 3)}),
+                      cargo=(4, 2), destination=(1, 1), leave_cells=(("mud", m),),
+                      consumable=("station", (4, 3)), consumable_initially=bool(k % 2),
+                      cargo_name="passenger",
+                      styles={"mud": "mud", "station": "station", "passenger": "package"})
+            for k, m in enumerate(mud_sets)
+        ]
+
+    def instances(self) -> list[CargoGrid]:
+        return list(self._instances)
+
+
+def _optimal_path(inst: CargoGrid, start: tuple, weights) -> list[str]:
+    """Brute-force best action list by value iteration over the game table."""
+    import numpy as np
+
+    g = build_game(inst, start, ACTIONS)
+    w = np.asarray(weights)
+    n = len(g["states"])
+    v = np.where(g["terminal"], 0.0, -np.inf)
+    for _ in range(1000):
+        old = v.copy()
+        for i in range(n):
+            if not g["terminal"][i]:
+                v[i] = max(float(w @ np.asarray(f)) + v[j]
+                           for j, f in zip(g["next"][i], g["phi"][i], strict=True))
+        if np.array_equal(old, v):
+            break
+    path, s = [], 0
+    while not g["terminal"][s]:
+        q = [float(w @ np.asarray(f)) + v[j] for j, f in zip(g["next"][s], g["phi"][s],
+                                                             strict=True)]
+        a = int(np.argmax(q))
+        path.append(ACTIONS[a])
+        s = g["next"][s][a]
+    return path
+
+
+def _toy_demo(dom: ToyDomain, idx: int, start: tuple) -> dict:
+    inst = dom.instances()[idx]
+    acts = _optimal_path(inst, start, dom.weights)
+    states, mu, s = [inst.state_to_json(start)], [0, 0, 0], start
+    for a in acts:
+        s, f, _ = inst.step(s, ACTIONS.index(a))
+        states.append(inst.state_to_json(s))
+        mu = [x + y for x, y in zip(mu, f, strict=True)]
+    reward = float(sum(w * m for w, m in zip(dom.weights, mu, strict=True)))
+    return {"env_code": [idx >> 1 & 1, idx & 1], "env_index": idx,
+            "start_state": inst.state_to_json(start), "actions": acts, "states": states,
+            "feature_counts": mu, "reward": reward, "constraints": []}
+
+
+def toy_sources(names: tuple[str, ...] = ("toy_a", "toy_b", "toy_c"),
+                demos: int = 2) -> list[DomainSource]:
+    """Three small domains with short curricula and 6 tests per level."""
+    out = []
+    for name in names:
+        dom = ToyDomain(name)
+        cur = {}
+        for c, cond in enumerate(CONDITIONS):
+            ds = [_toy_demo(dom, (k + c) % 4, dom.instances()[(k + c) % 4].initial_state)
+                  for k in range(demos)]
+            for d in ds:
+                d.update(knowledge_gain=0.0, belief_area_after=0.0, masked_feature=None)
+            cur[cond] = {"schema": "cfteach.curriculum/1", "domain": name, "condition": cond,
+                         "profile": "default", "seed": 0, "settings": {},
+                         "feature_names": list(dom.feature_names), "weights": list(dom.weights),
+                         "prior": [[0, 0, -1]], "demos": ds,
+                         "final_belief": {"constraints": [], "area": 0.0}}
+        starts = [(2, 1, 4, 2, 0, 1), (3, 3, 4, 2, 0, 1), (4, 1, 4, 2, 0, 1),
+                  (2, 1, 2, 1, 1, 1), (4, 3, 4, 2, 0, 1), (3, 1, 3, 3, 0, 1)]
+        tests: dict[str, list] = {}
+        for li, level in enumerate(LEVELS):
+            tests[level] = []
+            for k in range(6):
+                idx = (k + li) % 4
+                inst = dom.instances()[idx]
+                st = starts[(k + 2 * li) % 6]
+                st = (*st[:5], int(inst.consumable_initially))
+                t = _toy_demo(dom, idx, st)
+                t.update(overlap=1.0 / (li + 1), difficulty=level,
+                         all_optimal_actions=[t["actions"]], optimal_reward=t["reward"])
+                tests[level].append(t)
+        ts = {"schema": "cfteach.tests/1", "domain": name, "profile": "default", "seed": 0,
+              "settings": {}, "feature_names": list(dom.feature_names),
+              "weights": list(dom.weights), "belief": {"constraints": [], "area": 0.0},
+              "excluded": [], "cluster_centres": [], "tests": tests}
+        out.append(DomainSource(dom, cur, ts))
+    return out

@@ -1,0 +1,166 @@
+"""`cfteach study export`: tidy CSVs for the analysis (format agreed in docs/study.md)."""
+
+from __future__ import annotations
+
+import csv
+from collections import defaultdict
+from datetime import UTC, datetime
+from pathlib import Path
+
+from sqlalchemy import select
+from sqlalchemy.orm import sessionmaker
+
+from .db import make_engine
+from .models import Event, Session, TestResponse
+
+COUNTERFACTUAL = {"counterfactual_only", "proposed"}
+FEATURE = {"feature_only", "proposed"}
+
+COLUMNS: dict[str, list[tuple[str, str, str]]] = {
+    "participants.csv": [
+        ("participant_id", "str", "opaque random id of the session (not the Prolific ID)"),
+        ("prolific_pid", "str", "Prolific participant id (PROLIFIC_PID); empty for previews"),
+        ("study_id", "str", "Prolific STUDY_ID"),
+        ("session_id", "str", "Prolific SESSION_ID"),
+        ("condition", "str", "baseline | feature_only | counterfactual_only | proposed"),
+        ("counterfactual", "0/1", "1 if the condition uses counterfactual scaffolding"),
+        ("feature_scaffolding", "0/1", "1 if the condition uses feature scaffolding"),
+        ("domain_order", "str", "domains in the order shown, joined by ';'"),
+        ("test_set", "int", "which of the alternative test sets (0-based)"),
+        ("status", "str", "completed | screened_out | abandoned | in_progress"),
+        ("is_preview", "0/1", "1 for preview/test sessions (not counted in assignment)"),
+        ("started_at", "ISO 8601 UTC", "session creation time"),
+        ("completed_at", "ISO 8601 UTC", "completion (or screen-out) time; empty otherwise"),
+        ("practice_attempts", "int", "attempts used on the qualifying practice game"),
+        ("age", "int", "self-reported age"),
+        ("gender", "str", "self-reported gender"),
+        ("education", "str", "self-reported education (optional item)"),
+    ],
+    "test_responses.csv": [
+        ("participant_id", "str", "see participants.csv"),
+        ("condition", "str", "see participants.csv"),
+        ("domain", "str", "domain of the test"),
+        ("domain_position", "int", "1..3: position of the domain in the participant's order"),
+        ("test_id", "str", "test identifier, unique within the study"),
+        ("difficulty", "str", "low | medium | high"),
+        ("overlap", "float", "the test's belief overlap (difficulty = 1 / overlap)"),
+        ("trial_index", "int", "1..6: order in which the test was shown within the domain"),
+        ("actions", "str", "the participant's actions, space-separated"),
+        ("n_actions", "int", "number of actions"),
+        ("reward", "float", "w* . feature counts of the participant's trajectory (server replay)"),
+        ("optimal_reward", "float", "reward of the robot's optimal answer"),
+        ("optimal", "0/1", "1 if reward equals optimal_reward within 1e-9 (the paper's M1)"),
+        ("optimal_length", "int", "number of actions of the robot's optimal answer"),
+        ("time_ms", "int", "from the test being shown to its submission (browser clock)"),
+        ("confidence", "int", "1..5: confidence item (1 = Not Confident)"),
+    ],
+    "likert.csv": [
+        ("participant_id", "str", "see participants.csv"),
+        ("condition", "str", "see participants.csv"),
+        ("domain", "str", "domain whose demonstrations are rated"),
+        ("domain_position", "int", "1..3"),
+        ("item", "str", "informativeness | mental_effort"),
+        ("value", "int", "1..5 (1 = Not Informative / No Effort)"),
+    ],
+    "demo_views.csv": [
+        ("participant_id", "str", "see participants.csv"),
+        ("condition", "str", "see participants.csv"),
+        ("domain", "str", "domain of the demonstration"),
+        ("demo_index", "int", "0-based position of the demonstration in the curriculum"),
+        ("plays_completed", "int", "plays watched to the end"),
+        ("replays", "int", "plays started beyond the first"),
+        ("watch_ms", "int", "total time spent playing this demonstration"),
+    ],
+}
+
+
+def _iso(dt: datetime | None) -> str:
+    if dt is None:
+        return ""
+    if dt.tzinfo is None:
+        dt = dt.replace(tzinfo=UTC)
+    return dt.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def _b(x: bool) -> int:
+    return 1 if x else 0
+
+
+def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
+               abandon_after_minutes: float = 120.0) -> dict[str, int]:
+    """Write the tidy CSVs plus `data_dictionary.csv`; returns rows written per file."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    engine = make_engine(db_url)
+    now = datetime.now(UTC)
+    rows: dict[str, list[list]] = {name: [] for name in COLUMNS}
+    with sessionmaker(engine)() as db:
+        q = select(Session).order_by(Session.id)
+        if not include_previews:
+            q = q.where(Session.is_preview.is_(False))
+        sessions = db.scalars(q).all()
+        by_pk = {s.id: s for s in sessions}
+        for s in sessions:
+            status = s.status
+            last = s.last_active_at if s.last_active_at.tzinfo else s.last_active_at.replace(
+                tzinfo=UTC)
+            idle = (now - last).total_seconds()
+            if status == "in_progress" and idle > abandon_after_minutes * 60:
+                status = "abandoned"
+            rows["participants.csv"].append([
+                s.participant_id, s.prolific_pid or "", s.study_id or "", s.session_id or "",
+                s.condition, _b(s.condition in COUNTERFACTUAL), _b(s.condition in FEATURE),
+                s.domain_order, s.test_set, status, _b(s.is_preview), _iso(s.created_at),
+                _iso(s.completed_at), s.practice_attempts,
+                "" if s.age is None else s.age, s.gender or "", s.education or ""])
+        for t in db.scalars(select(TestResponse).order_by(TestResponse.session_pk,
+                                                          TestResponse.id)):
+            s = by_pk.get(t.session_pk)
+            if s is None:
+                continue
+            rows["test_responses.csv"].append([
+                s.participant_id, s.condition, t.domain, t.domain_position, t.test_id,
+                t.difficulty, "" if t.overlap is None else repr(t.overlap), t.trial_index,
+                t.actions, t.n_actions, repr(t.reward), repr(t.optimal_reward), _b(t.optimal),
+                t.optimal_length, t.time_ms, t.confidence])
+        views: dict[tuple, list[int]] = defaultdict(lambda: [0, 0, 0])
+        for ev in db.scalars(select(Event).where(Event.type.in_(
+                ("likert", "demo_play_start", "demo_play_end")))
+                .order_by(Event.session_pk, Event.seq)):
+            s = by_pk.get(ev.session_pk)
+            if s is None:
+                continue
+            order = s.domain_order.split(";")
+            if ev.type == "likert":
+                dom = ev.domain
+                for item in ("informativeness", "mental_effort"):
+                    rows["likert.csv"].append([s.participant_id, s.condition, dom,
+                                               order.index(dom) + 1, item, ev.payload[item]])
+            elif ev.type in ("demo_play_start", "demo_play_end"):
+                dom = ev.domain
+                v = views[(s.id, dom, ev.payload["demo_index"])]
+                if ev.type == "demo_play_start":
+                    v[1] += 1
+                else:
+                    v[0] += int(bool(ev.payload["completed"]))
+                    v[2] += int(ev.payload["watch_ms"])
+        for (pk, dom, k), (done, starts, ms) in sorted(views.items()):
+            s = by_pk[pk]
+            rows["demo_views.csv"].append([s.participant_id, s.condition, dom, k, done,
+                                           max(0, starts - 1), ms])
+    counts = {}
+    for name, cols in COLUMNS.items():
+        with open(out / name, "w", newline="", encoding="utf-8") as f:
+            w = csv.writer(f)
+            w.writerow([c for c, _, _ in cols])
+            w.writerows(rows[name])
+        counts[name] = len(rows[name])
+    with open(out / "data_dictionary.csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["file", "column", "type", "description"])
+        for name, cols in COLUMNS.items():
+            for c, t, d in cols:
+                w.writerow([name, c, t, d])
+    engine.dispose()
+    return counts
+

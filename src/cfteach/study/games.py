@@ -1,0 +1,199 @@
+"""Playable games: the reachable part of one MDP instance as a transition table.
+
+The browser plays from this table (so it needs no domain code) and the server scores a
+submitted move list by replaying it in the same table, which was built with the domain's
+own `Instance.step`. Feature vectors stay on the server: the page never sees rewards.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+MAX_GAME_STATES = 20_000
+
+
+class ScoringError(ValueError):
+    """A submitted move list cannot be replayed (unknown action, unfinished, too long)."""
+
+
+def build_game(instance: Any, start_state: Any, actions: tuple[str, ...]) -> dict:
+    """Breadth-first table of every state reachable from `start_state`.
+
+    Returns `states` (JSON states, the start first), `next[s][a]` (state index; `None` for
+    terminal states, which are absorbing), `terminal[s]` and `phi[s][a]` (feature vector).
+    """
+    key = instance.state_to_json
+    index: dict[Any, int] = {start_state: 0}
+    order = [start_state]
+    terminal = [False]
+    nxt: list[list[int] | None] = []
+    phi: list[list[list[float]] | None] = []
+    queue = deque([0])
+    rows: dict[int, tuple[list[int], list[list[float]]]] = {}
+    while queue:
+        i = queue.popleft()
+        s = order[i]
+        if terminal[i]:
+            continue
+        succ, feats = [], []
+        for a in range(len(actions)):
+            s2, f, term = instance.step(s, a)
+            if s2 not in index:
+                if len(order) >= MAX_GAME_STATES:
+                    raise ValueError(f"game has more than {MAX_GAME_STATES} reachable states")
+                index[s2] = len(order)
+                order.append(s2)
+                terminal.append(bool(term))
+                queue.append(index[s2])
+            elif term and not terminal[index[s2]]:
+                terminal[index[s2]] = True
+            succ.append(index[s2])
+            feats.append([float(x) for x in np.asarray(f).ravel()])
+        rows[i] = (succ, feats)
+    for i in range(len(order)):
+        if i in rows and not terminal[i]:
+            nxt.append(rows[i][0])
+            phi.append(rows[i][1])
+        else:
+            nxt.append(None)
+            phi.append(None)
+    return {
+        "actions": list(actions),
+        "states": [_plain(key(s)) for s in order],
+        "next": nxt,
+        "terminal": terminal,
+        "phi": phi,
+    }
+
+
+def public_game(game: dict) -> dict:
+    """The part of a game the browser may see (no features)."""
+    return {k: game[k] for k in ("actions", "states", "next", "terminal")}
+
+
+@dataclass(frozen=True)
+class Score:
+    """Outcome of replaying a move list."""
+
+    reward: float
+    feature_counts: list[float]
+    n_actions: int
+    final_state: int
+    finished: bool
+
+
+def replay(game: dict, weights: list[float], actions: list[str], *, require_end: bool = True,
+           max_actions: int = 500) -> Score:
+    """Replay `actions` from the game's start and sum `w . phi` along the way."""
+    if len(actions) > max_actions:
+        raise ScoringError(f"too many actions ({len(actions)} > {max_actions})")
+    names = game["actions"]
+    w = np.asarray(weights, dtype=float)
+    mu = np.zeros(len(w))
+    s = 0
+    for t, name in enumerate(actions):
+        if name not in names:
+            raise ScoringError(f"unknown action {name!r} at position {t}; expected one of {names}")
+        if game["terminal"][s]:
+            raise ScoringError(f"action {name!r} at position {t} comes after the game ended")
+        a = names.index(name)
+        mu += np.asarray(game["phi"][s][a], dtype=float)
+        s = game["next"][s][a]
+    finished = bool(game["terminal"][s])
+    if require_end and not finished:
+        raise ScoringError("the move list does not reach the end of the game")
+    return Score(float(w @ mu), mu.tolist(), len(actions), s, finished)
+
+
+def optimal_value(game: dict, weights: list[float], *, max_sweeps: int = 10_000) -> float:
+    """Best achievable total reward from the start to a terminal state (value iteration).
+
+    Used for the practice game, whose target energy is computed, not typed in.
+    """
+    w = np.asarray(weights, dtype=float)
+    n = len(game["states"])
+    v = np.full(n, -np.inf)
+    for i in range(n):
+        if game["terminal"][i]:
+            v[i] = 0.0
+    for _ in range(max_sweeps):
+        changed = False
+        for i in range(n):
+            if game["terminal"][i]:
+                continue
+            best = max(
+                float(w @ np.asarray(f)) + v[j] for j, f in zip(game["next"][i], game["phi"][i],
+                                                                strict=True)
+            )
+            if best > v[i] + 1e-12:
+                v[i] = best
+                changed = True
+        if not changed:
+            return float(v[0])
+    raise ValueError("value iteration did not converge (a reward-gaining cycle?)")
+
+
+def is_optimal(reward: float, optimal_reward: float, tol: float = 1e-9) -> bool:
+    """The paper's M1: the participant's reward equals the optimum (within float tolerance)."""
+    return math.isclose(reward, optimal_reward, rel_tol=tol, abs_tol=tol)
+
+
+def _plain(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (np.bool_,)):
+        return bool(obj)
+    if isinstance(obj, (np.floating,)):
+        return float(obj)
+    return obj
+
+
+def best_path(game: dict, weights: list[float]) -> list[str]:
+    """An action list with the highest total reward (first best action in action order)."""
+    w = np.asarray(weights, dtype=float)
+    n = len(game["states"])
+    v = np.where(game["terminal"], 0.0, -np.inf)
+    for _ in range(10_000):
+        old = v.copy()
+        for i in range(n):
+            if not game["terminal"][i]:
+                v[i] = max(float(w @ np.asarray(f)) + v[j]
+                           for j, f in zip(game["next"][i], game["phi"][i], strict=True))
+        if np.array_equal(old, v):
+            break
+    path, s = [], 0
+    while not game["terminal"][s]:
+        q = [float(w @ np.asarray(f)) + v[j]
+             for j, f in zip(game["next"][s], game["phi"][s], strict=True)]
+        a = int(np.argmax(q))
+        path.append(game["actions"][a])
+        s = game["next"][s][a]
+    return path
+
+
+def shortest_path(game: dict) -> list[str]:
+    """Fewest actions to the end, from the public table alone (what a naive player does)."""
+    prev: dict[int, tuple[int, int]] = {0: (-1, -1)}
+    queue = deque([0])
+    while queue:
+        s = queue.popleft()
+        if game["terminal"][s]:
+            path = []
+            while prev[s][0] >= 0:
+                s, a = prev[s]
+                path.append(game["actions"][a])
+            return path[::-1]
+        for a, j in enumerate(game["next"][s]):
+            if j not in prev:
+                prev[j] = (s, a)
+                queue.append(j)
+    raise ValueError("the game cannot be finished")

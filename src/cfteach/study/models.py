@@ -1,0 +1,102 @@
+"""Database tables. Every participant action is one `events` row, written once, in order."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+
+from sqlalchemy import (
+    JSON,
+    Boolean,
+    DateTime,
+    Float,
+    ForeignKey,
+    Integer,
+    String,
+    Text,
+    UniqueConstraint,
+)
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+
+
+def utcnow() -> datetime:
+    return datetime.now(UTC)
+
+
+class Base(DeclarativeBase):
+    pass
+
+
+class Session(Base):
+    """One participant's attempt at the study (no IP address or other personal data)."""
+
+    __tablename__ = "sessions"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    participant_id: Mapped[str] = mapped_column(String(32), unique=True)
+    token: Mapped[str] = mapped_column(String(64), unique=True)
+    study_version: Mapped[str] = mapped_column(String(32))
+    pid_key: Mapped[str | None] = mapped_column(String(140), unique=True, nullable=True)
+    prolific_pid: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    study_id: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    session_id: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    condition: Mapped[str] = mapped_column(String(32))
+    domain_order: Mapped[str] = mapped_column(String(200))
+    test_set: Mapped[int] = mapped_column(Integer)
+    seed: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(16), default="in_progress", index=True)
+    is_preview: Mapped[bool] = mapped_column(Boolean, default=False)
+    step_index: Mapped[int] = mapped_column(Integer, default=0)
+    event_seq: Mapped[int] = mapped_column(Integer, default=0)
+    practice_attempts: Mapped[int] = mapped_column(Integer, default=0)
+    age: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    gender: Mapped[str | None] = mapped_column(String(40), nullable=True)
+    education: Mapped[str | None] = mapped_column(String(40), nullable=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    last_active_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    step_entered_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    completed_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+
+
+class Event(Base):
+    """One client event, identified by the client's event id (a retry cannot duplicate it)."""
+
+    __tablename__ = "events"
+    __table_args__ = (
+        UniqueConstraint("session_pk", "seq", name="uq_events_session_seq"),
+        UniqueConstraint("session_pk", "event_id", name="uq_events_session_event_id"),
+    )
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    session_pk: Mapped[int] = mapped_column(ForeignKey("sessions.id"), index=True)
+    seq: Mapped[int] = mapped_column(Integer)
+    event_id: Mapped[str] = mapped_column(String(64))
+    step_index: Mapped[int] = mapped_column(Integer)
+    step_kind: Mapped[str] = mapped_column(String(32))
+    domain: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    type: Mapped[str] = mapped_column(String(32))
+    payload: Mapped[dict] = mapped_column(JSON)
+    client_ms: Mapped[float | None] = mapped_column(Float, nullable=True)
+    server_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class TestResponse(Base):
+    """A scored test answer: the server's replay of the participant's moves."""
+
+    __tablename__ = "test_responses"
+    __table_args__ = (UniqueConstraint("session_pk", "test_id", name="uq_test_session_test"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    session_pk: Mapped[int] = mapped_column(ForeignKey("sessions.id"), index=True)
+    event_pk: Mapped[int] = mapped_column(ForeignKey("events.id"))
+    domain: Mapped[str] = mapped_column(String(64))
+    domain_position: Mapped[int] = mapped_column(Integer)
+    test_id: Mapped[str] = mapped_column(String(100))
+    difficulty: Mapped[str] = mapped_column(String(16))
+    overlap: Mapped[float | None] = mapped_column(Float, nullable=True)
+    trial_index: Mapped[int] = mapped_column(Integer)
+    actions: Mapped[str] = mapped_column(Text)
+    n_actions: Mapped[int] = mapped_column(Integer)
+    reward: Mapped[float] = mapped_column(Float)
+    optimal_reward: Mapped[float] = mapped_column(Float)
+    optimal: Mapped[bool] = mapped_column(Boolean)
+    optimal_length: Mapped[int] = mapped_column(Integer)
+    time_ms: Mapped[int] = mapped_column(Integer)
+    server_ms: Mapped[int] = mapped_column(Integer)
+    confidence: Mapped[int] = mapped_column(Integer)

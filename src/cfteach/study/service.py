@@ -1,0 +1,324 @@
+"""Study logic independent of HTTP: sessions, assignment, events, scoring, step advance."""
+
+from __future__ import annotations
+
+import random
+import re
+import secrets
+import threading
+from datetime import UTC, datetime
+from typing import Any
+
+from pydantic import ValidationError
+from sqlalchemy import Engine, func, select, text
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session as DBSession
+from sqlalchemy.orm import sessionmaker
+
+from . import schemas
+from .assignment import all_cells, cell_counts, choose_cell
+from .build import browser_game
+from .games import ScoringError, is_optimal, replay
+from .models import Event, Session, TestResponse, utcnow
+from .steps import ALLOWED, build_steps
+from .texts import EDUCATION, GENDERS, LIKERT
+
+_PLACEHOLDER = re.compile(r"^\{\{?%.*%\}?\}$|^$")
+_ID_OK = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+
+
+class ApiError(Exception):
+    """A request the server refuses; `status` is the HTTP code, `code` a stable name."""
+
+    def __init__(self, status: int, code: str, message: str) -> None:
+        super().__init__(message)
+        self.status, self.code, self.message = status, code, message
+
+
+class StudyService:
+    """All participant-facing operations; one instance per running server."""
+
+    def __init__(self, engine: Engine, study: dict, *, seed: int | None = None) -> None:
+        self.engine = engine
+        self.study = study
+        self.Session = sessionmaker(engine, expire_on_commit=False)
+        self._lock = threading.Lock()
+        self._rng = random.Random(seed)
+        self._pg = engine.dialect.name == "postgresql"
+        self._steps_cache: dict[tuple, list[dict]] = {}
+
+    # -- sessions -------------------------------------------------------------------------
+
+    def start(self, req: schemas.SessionRequest) -> tuple[Session, bool]:
+        """Resume the participant's session (by Prolific PID, else by token) or assign one."""
+        pid = req.prolific_pid
+        for name, value in (("PROLIFIC_PID", pid), ("STUDY_ID", req.study_id),
+                            ("SESSION_ID", req.session_id)):
+            if value is not None and not _PLACEHOLDER.match(value) and not _ID_OK.match(value):
+                raise ApiError(422, "bad_parameter",
+                               f"{name} may contain only letters, digits, '_' and '-'")
+        placeholder = pid is None or bool(_PLACEHOLDER.match(pid))
+        preview = placeholder or req.mode in ("test", "preview")
+        pid = None if placeholder else pid
+        study_id = None if req.study_id and _PLACEHOLDER.match(req.study_id) else req.study_id
+        sess_id = None if req.session_id and _PLACEHOLDER.match(req.session_id) else req.session_id
+        pid_key = f"{study_id or ''}:{pid}" if pid and not preview else None
+        with self._lock, self.Session() as db, db.begin():
+            if self._pg:
+                db.execute(text("SELECT pg_advisory_xact_lock(727274)"))
+            if pid_key:
+                row = db.scalar(select(Session).where(Session.pid_key == pid_key))
+                if row is not None:
+                    return row, True
+            elif req.token:
+                row = db.scalar(select(Session).where(Session.token == req.token))
+                if row is not None and row.is_preview and row.prolific_pid == pid:
+                    return row, True
+            now = utcnow()
+            cond, order, test_set = choose_cell(db, self.study, now, self._rng)
+            row = Session(
+                participant_id=secrets.token_hex(8), token=secrets.token_urlsafe(32),
+                study_version=self.study["version"], pid_key=pid_key, prolific_pid=pid,
+                study_id=study_id, session_id=sess_id, condition=cond,
+                domain_order=";".join(order), test_set=test_set,
+                seed=self._rng.randrange(2**31), status="in_progress", is_preview=preview,
+                step_index=0, event_seq=0, practice_attempts=0, created_at=now,
+                last_active_at=now, step_entered_at=now)
+            db.add(row)
+        return row, False
+
+    def _session(self, db: DBSession, token: str | None, *, lock: bool = False) -> Session:
+        if not token or len(token) > 64:
+            raise ApiError(401, "no_session", "missing or malformed session token")
+        q = select(Session).where(Session.token == token)
+        if lock and self._pg:
+            q = q.with_for_update()
+        row = db.scalar(q)
+        if row is None:
+            raise ApiError(401, "no_session", "unknown session token")
+        if row.study_version != self.study["version"]:
+            raise ApiError(410, "study_changed", "this session belongs to another study version")
+        return row
+
+    def steps(self, row: Session) -> list[dict]:
+        key = (row.domain_order, row.test_set, row.seed)
+        if key not in self._steps_cache:
+            self._steps_cache[key] = build_steps(self.study, row.domain_order.split(";"),
+                                                 row.test_set, row.seed)
+        return self._steps_cache[key]
+
+    # -- reading the current page ---------------------------------------------------------
+
+    def state(self, token: str | None) -> dict:
+        with self.Session() as db, db.begin():
+            row = self._session(db, token)
+            return self._view(db, row)
+
+    def _view(self, db: DBSession, row: Session) -> dict:
+        steps = self.steps(row)
+        comp = self.study["completion"]
+        base = {"status": row.status, "step_index": row.step_index, "n_steps": len(steps),
+                "participant_id": row.participant_id, "is_preview": row.is_preview}
+        if row.status == "screened_out":
+            return {**base, "step": {"kind": "screened_out", "code": comp["screened_out"],
+                                     "redirect": _redirect(comp, "screened_out", row)}}
+        step = dict(steps[row.step_index])
+        kind = step["kind"]
+        s = self.study
+        if kind in ("free_play", "practice"):
+            p = s["practice"]
+            step.update(layout=p["layout"], game=p["game"],  # not secret: energy shown
+                        weights=p["weights"], start_energy=p["start_energy"],
+                        target_energy=p["target_energy"], attempts_used=row.practice_attempts,
+                        attempts_allowed=s["practice_attempts"])
+        elif kind == "domain_intro":
+            step["info"] = _public_info(s["domain_info"][step["domain"]])
+        elif kind == "demos":
+            demos = s["curricula"][step["domain"]][row.condition]
+            step.update(info=_public_info(s["domain_info"][step["domain"]]), demos=demos,
+                        step_ms=s["demo_step_ms"],
+                        completed=self._demo_completions(db, row, row.step_index, len(demos)))
+        elif kind == "survey":
+            step["items"] = {k: LIKERT[k] for k in ("informativeness", "mental_effort")}
+        elif kind == "test":
+            t = s["tests"][step["domain"]][row.test_set][step.pop("test_index")]
+            step.update(browser_game(t), info=_public_info(s["domain_info"][step["domain"]]),
+                        confidence=LIKERT["confidence"])
+        elif kind == "feedback":
+            n = db.scalar(select(func.count()).select_from(TestResponse).where(
+                TestResponse.session_pk == row.id, TestResponse.domain == step["domain"],
+                TestResponse.optimal.is_(True)))
+            total = len(s["tests"][step["domain"]][row.test_set])
+            step.update(correct=int(n or 0), total=total)
+        elif kind == "demographics":
+            step.update(genders=GENDERS, education=EDUCATION)
+        elif kind == "complete":
+            step.update(code=comp["completed"],
+                        redirect=None if row.is_preview else _redirect(comp, "completed", row))
+        return {**base, "step": step}
+
+    def _demo_completions(self, db: DBSession, row: Session, step_index: int,
+                          n: int) -> list[int]:
+        counts = [0] * n
+        for payload in db.scalars(select(Event.payload).where(
+                Event.session_pk == row.id, Event.step_index == step_index,
+                Event.type == "demo_play_end")):
+            if payload.get("completed") and 0 <= payload["demo_index"] < n:
+                counts[payload["demo_index"]] += 1
+        return counts
+
+    # -- events ---------------------------------------------------------------------------
+
+    def post_event(self, token: str | None, req: schemas.EventRequest) -> dict:
+        """Store one event exactly once and apply its effect on the step machine."""
+        with self.Session() as db:
+            try:
+                with db.begin():
+                    result = self._apply(db, token, req)
+            except IntegrityError as e:
+                raise ApiError(409, "duplicate_event",
+                               f"event {req.event_id} was already stored") from e
+            with db.begin():
+                row = self._session(db, token)
+                return {"ok": True, **result, "state": self._view(db, row)}
+
+    def _apply(self, db: DBSession, token: str | None, req: schemas.EventRequest) -> dict:
+        row = self._session(db, token, lock=True)
+        dup = db.scalar(select(Event.id).where(Event.session_pk == row.id,
+                                               Event.event_id == req.event_id))
+        if dup is not None:
+            raise ApiError(409, "duplicate_event", f"event {req.event_id} was already stored")
+        if row.status != "in_progress":
+            raise ApiError(409, "session_finished", f"this session is {row.status}")
+        if req.step_index != row.step_index:
+            raise ApiError(409, "wrong_step", f"event is for step {req.step_index} but the "
+                           f"session is at step {row.step_index}")
+        steps = self.steps(row)
+        step = steps[row.step_index]
+        kind = step["kind"]
+        if req.type != "page_load" and req.type not in ALLOWED[kind]:
+            raise ApiError(422, "wrong_event_type",
+                           f"event type {req.type!r} is not accepted on a {kind} page")
+        model = schemas.PAYLOADS.get(req.type)
+        if model is None:
+            raise ApiError(422, "wrong_event_type", f"unknown event type {req.type!r}")
+        try:
+            payload = model.model_validate(req.payload)
+        except ValidationError as e:
+            raise ApiError(422, "bad_payload", f"{req.type}: {_first_error(e)}") from e
+        now = utcnow()
+        row.event_seq += 1
+        ev = Event(session_pk=row.id, seq=row.event_seq, event_id=req.event_id,
+                   step_index=row.step_index, step_kind=kind, domain=step.get("domain"),
+                   type=req.type,
+                   payload=payload.model_dump(), client_ms=req.client_ms, server_at=now)
+        db.add(ev)
+        db.flush()
+        row.last_active_at = now
+        result: dict[str, Any] = {}
+        advance = False
+        if req.type in ("continue", "consent", "likert"):
+            advance = True
+            if kind == "demos":
+                n = len(self.study["curricula"][step["domain"]][row.condition])
+                done = self._demo_completions(db, row, row.step_index, n)
+                if min(done) < 1:
+                    raise ApiError(409, "demos_unwatched", "every demonstration must be "
+                                   f"watched to the end at least once (plays: {done})")
+        elif req.type == "practice_attempt":
+            result = self._practice(row, payload)
+            advance = result["passed"]
+        elif req.type == "test_response":
+            result = self._score_test(db, row, step, ev, payload, now)
+            advance = True
+        elif req.type == "demographics":
+            row.age, row.gender, row.education = payload.age, payload.gender, payload.education
+            advance = True
+        if advance:
+            row.step_index += 1
+            row.step_entered_at = now
+            if steps[row.step_index]["kind"] == "complete":
+                row.status = "completed"
+                row.completed_at = now
+        return result
+
+    def _practice(self, row: Session, p: schemas.PracticeAttempt) -> dict:
+        prac = self.study["practice"]
+        try:
+            score = replay(prac["game"], prac["weights"], p.actions, require_end=False)
+        except ScoringError as e:
+            raise ApiError(422, "bad_moves", str(e)) from e
+        energy = prac["start_energy"] + score.reward
+        passed = score.finished and is_optimal(energy, prac["target_energy"])
+        row.practice_attempts += 1
+        if not passed and row.practice_attempts >= self.study["practice_attempts"]:
+            row.status = "screened_out"
+            row.completed_at = utcnow()
+        return {"passed": passed, "energy": energy, "finished": score.finished,
+                "attempts_used": row.practice_attempts}
+
+    def _score_test(self, db: DBSession, row: Session, step: dict, ev: Event,
+                    p: schemas.TestAnswer, now: datetime) -> dict:
+        dom = step["domain"]
+        t = self.study["tests"][dom][row.test_set][step["test_index"]]
+        try:
+            score = replay(t["game"], self.study["domain_info"][dom]["weights"], p.actions)
+        except ScoringError as e:
+            raise ApiError(422, "bad_moves", str(e)) from e
+        entered = _aware(row.step_entered_at)
+        db.add(TestResponse(
+            session_pk=row.id, event_pk=ev.id, domain=dom, domain_position=step["position"],
+            test_id=t["test_id"], difficulty=t["difficulty"], overlap=t["overlap"],
+            trial_index=step["trial"], actions=" ".join(p.actions), n_actions=len(p.actions),
+            reward=score.reward, optimal_reward=t["optimal_reward"],
+            optimal=is_optimal(score.reward, t["optimal_reward"]),
+            optimal_length=t["optimal_length"], time_ms=p.time_ms,
+            server_ms=int((now - entered).total_seconds() * 1000), confidence=p.confidence))
+        return {}
+
+    # -- researcher -----------------------------------------------------------------------
+
+    def progress(self) -> dict:
+        with self.Session() as db, db.begin():
+            now = utcnow()
+            counts = cell_counts(db, self.study, now)
+            done = dict.fromkeys(all_cells(self.study), 0)
+            for cond, order, ts, n in db.execute(
+                    select(Session.condition, Session.domain_order, Session.test_set,
+                           func.count())
+                    .where(Session.study_version == self.study["version"],
+                           Session.is_preview.is_(False), Session.status == "completed")
+                    .group_by(Session.condition, Session.domain_order, Session.test_set)):
+                key = (cond, tuple(order.split(";")), ts)
+                if key in done:
+                    done[key] = n
+            status = dict(db.execute(select(Session.status, func.count()).where(
+                Session.study_version == self.study["version"], Session.is_preview.is_(False))
+                .group_by(Session.status)).all())
+            previews = db.scalar(select(func.count()).select_from(Session).where(
+                Session.is_preview.is_(True))) or 0
+        cells = [{"condition": c, "domain_order": ";".join(o), "test_set": t,
+                  "occupied": counts[(c, o, t)], "completed": done[(c, o, t)]}
+                 for (c, o, t) in all_cells(self.study)]
+        return {"study_version": self.study["version"], "status": status,
+                "previews": previews, "cells": cells}
+
+
+def _public_info(info: dict) -> dict:
+    return {k: info[k] for k in ("title", "task", "actions", "note", "keys", "effects_word")}
+
+
+def _redirect(comp: dict, which: str, row: Session) -> str | None:
+    if not comp.get("url") or row.is_preview:
+        return None
+    return f"{comp['url']}{comp[which]}"
+
+
+def _aware(dt: datetime) -> datetime:
+    return dt if dt.tzinfo else dt.replace(tzinfo=UTC)
+
+
+def _first_error(e: ValidationError) -> str:
+    err = e.errors()[0]
+    loc = ".".join(str(x) for x in err["loc"]) or "body"
+    return f"{loc}: {err['msg']}"

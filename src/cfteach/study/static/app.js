@@ -1,0 +1,596 @@
+// Participant UI: fetches the current step from the server, renders it, posts events.
+// All study logic (order, assignment, scoring, gating) lives on the server; a reload simply
+// asks the server again and lands on the same page.
+import { drawGrid } from "./grid.js";
+
+const app = document.getElementById("app");
+const KEYMAP = { ArrowUp: "up", ArrowDown: "down", ArrowLeft: "left", ArrowRight: "right",
+  p: "pickup", d: "dropoff", P: "pickup", D: "dropoff" };
+const KEY_LABELS = { up: "up arrow", down: "down arrow", left: "left arrow",
+  right: "right arrow", pickup: "p", dropoff: "d" };
+const ACTION_TEXT = { up: "move up", down: "move down", left: "move left",
+  right: "move right", pickup: "pick up", dropoff: "drop" };
+let token = sessionStorage.getItem("cfteach-token");
+let keyHandler = null;
+let cleanup = [];
+
+// Arrow keys and space never scroll the page.
+window.addEventListener("keydown", (e) => {
+  if (["ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight", " "].includes(e.key) &&
+      !(e.target instanceof HTMLTextAreaElement || e.target instanceof HTMLInputElement)) {
+    e.preventDefault();
+  }
+  if (keyHandler && !e.repeat) keyHandler(e);
+}, { passive: false });
+
+function uuid() {
+  if (crypto.randomUUID) return crypto.randomUUID();
+  const b = crypto.getRandomValues(new Uint8Array(16));
+  return Array.from(b, (x) => x.toString(16).padStart(2, "0")).join("");
+}
+
+function h(tag, attrs = {}, ...children) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (k === "onclick") e.addEventListener("click", v);
+    else if (k === "onchange") e.addEventListener("change", v);
+    else if (k === "text") e.textContent = v;
+    else if (v === true) e.setAttribute(k, "");
+    else if (v !== false && v !== null && v !== undefined) e.setAttribute(k, v);
+  }
+  for (const c of children.flat()) {
+    if (c === null || c === undefined) continue;
+    e.appendChild(typeof c === "string" ? document.createTextNode(c) : c);
+  }
+  return e;
+}
+
+async function api(method, path, body) {
+  const headers = { "Content-Type": "application/json" };
+  if (token) headers["X-Session-Token"] = token;
+  const res = await fetch(path, { method, headers, credentials: "same-origin",
+    body: body === undefined ? undefined : JSON.stringify(body) });
+  const data = await res.json().catch(() => ({}));
+  return { status: res.status, data };
+}
+
+// Events are sent one at a time, in order; a lost response is retried with the same id, and
+// the server answers a retried (already stored) event with 409 duplicate_event.
+let queue = Promise.resolve();
+function post(stepIndex, type, payload = {}) {
+  const ev = { event_id: uuid(), step_index: stepIndex, type, payload,
+    client_ms: Math.round(performance.timeOrigin + performance.now()) };
+  const job = queue.then(async () => {
+    for (let attempt = 0; attempt < 6; attempt++) {
+      try {
+        const r = await api("POST", "/api/event", ev);
+        if (r.status === 200) return r.data;
+        if (r.status === 409 && r.data.error === "duplicate_event") {
+          const s = await api("GET", "/api/state");
+          return { ok: true, duplicate: true, state: s.data };
+        }
+        return { ok: false, status: r.status, ...r.data };
+      } catch (err) {
+        await new Promise((ok) => setTimeout(ok, 300 * 2 ** attempt));
+      }
+    }
+    return { ok: false, error: "network", detail: "could not reach the server" };
+  });
+  queue = job.catch(() => {});
+  return job;
+}
+
+async function advance(stepIndex, type, payload) {
+  const r = await post(stepIndex, type, payload);
+  if (r.ok) render(r.state);
+  else if (r.error === "wrong_step" || r.error === "session_finished") refresh();
+  else showError(r.detail || "Something went wrong; please try again.");
+  return r;
+}
+
+function showError(msg) {
+  const box = document.getElementById("error") || app.appendChild(h("p", { id: "error",
+    class: "error", role: "alert" }));
+  box.textContent = msg;
+}
+
+function continueButton(label, onclick, extra = {}) {
+  return h("button", { class: "primary", onclick, ...extra }, label);
+}
+
+function keyLegend(keys) {
+  return h("table", { class: "keys" }, h("tr", {}, h("th", { text: "Key" }),
+    h("th", { text: "Action" })),
+  keys.map((k) => h("tr", {}, h("td", { text: KEY_LABELS[k] }), h("td", { text: ACTION_TEXT[k] }))),
+  h("tr", {}, h("td", { text: "r" }), h("td", { text: "reset simulation" })));
+}
+
+// ---------------------------------------------------------------------------------------
+// A playable game from the server's transition table.
+class Game {
+  constructor(host, layout, game, { keys, energy = null, onMove = null, onEnd = null,
+    resetAfterEnd = false, label = "game" }) {
+    Object.assign(this, { host, layout, game, keys, energy, onMove, onEnd, resetAfterEnd,
+      label });
+    this.host.classList.add("board");
+    this.host.setAttribute("tabindex", "0");
+    this.reset(false);
+    this.resets = 0;
+  }
+
+  reset(count = true) {
+    this.s = 0;
+    this.moves = [];
+    this.ended = false;
+    this.value = this.energy ? this.energy.start : null;
+    this.trail = [this.game.states[0].agent];
+    if (count) this.resets += 1;
+    this.draw();
+    if (this.onMove) this.onMove(this);
+  }
+
+  press(e) {
+    if (e.key === "r" || e.key === "R") {
+      if (!this.ended || this.resetAfterEnd) this.reset();
+      return;
+    }
+    const action = KEYMAP[e.key];
+    if (!action || this.ended || !this.keys.includes(action)) return;
+    if (this.energy && this.value <= 0) return;
+    const a = this.game.actions.indexOf(action);
+    const nxt = this.game.next[this.s][a];
+    if (nxt === this.s) return; // blocked move or no-op: ignored and not recorded
+    if (this.energy) {
+      const phi = this.game.phi[this.s][a];
+      this.value += phi.reduce((t, f, i) => t + f * this.energy.weights[i], 0);
+    }
+    this.s = nxt;
+    this.moves.push(action);
+    const st = this.game.states[nxt];
+    this.trail.push(st.agent);
+    this.ended = this.game.terminal[nxt];
+    this.draw();
+    if (this.onMove) this.onMove(this);
+    if (this.ended && this.onEnd) this.onEnd(this);
+  }
+
+  draw() {
+    const st = this.game.states[this.s];
+    this.host.replaceChildren(drawGrid(this.layout, st, { trail: this.trail, label: this.label,
+      banner: this.ended ? "Game completed!" : null }));
+    this.host.dataset.moves = this.moves.join(" ");
+    this.host.dataset.ended = String(this.ended);
+  }
+}
+
+function activate(game) {
+  keyHandler = (e) => game.press(e);
+  game.host.addEventListener("click", () => game.host.focus());
+  game.host.focus({ preventScroll: true });
+}
+
+// ---------------------------------------------------------------------------------------
+// Pages
+
+const pages = {
+  consent(st) {
+    const step = st.step_index;
+    const boxes = [["adult", "I am 18 years old or older:"],
+      ["read", "I have read and understand the information above:"],
+      ["agree", "I want to participate in this research:"]];
+    const status = h("p", { id: "eligibility" });
+    const agree = continueButton("I agree", () => advance(step, "consent",
+      { adult: true, read: true, agree: true }), { id: "agree", disabled: true });
+    const update = () => {
+      const all = boxes.every(([k]) => document.getElementById(`c-${k}`).checked);
+      agree.disabled = !all;
+      status.textContent = all
+        ? "You are eligible to participate in our study. Do you understand and consent to these terms?"
+        : "Unless you meet the above requirements, you are not eligible to complete this study.";
+    };
+    app.replaceChildren(
+      h("h1", { text: "Informed Consent Form" }),
+      h("section", { class: "consent" },
+        h("h2", { text: "Procedures" }),
+        h("p", { text: "You will watch short demonstrations of a robot playing three simple " +
+          "games and then play the games yourself. This study may take up to 25 minutes." }),
+        h("h2", { text: "Participation Requirements" }),
+        h("p", { text: "You must be 18 or older and use a desktop or laptop computer." }),
+        h("h2", { text: "Risks and Benefits" }),
+        h("p", { text: "The risks are no greater than those of ordinary computer use. " +
+          "There is no direct benefit to you." }),
+        h("h2", { text: "Compensation" }),
+        h("p", { text: "You will be paid at a competitive Prolific rate." }),
+        h("h2", { text: "Confidentiality" }),
+        h("p", { text: "We store your Prolific ID only to pay you and keep your answers " +
+          "under a random identifier. Your IP address will not be captured." }),
+        h("h2", { text: "Voluntary Participation" }),
+        h("p", { text: "Participation is voluntary; you may stop at any time." })),
+      h("div", { class: "checks" }, boxes.map(([k, label]) => h("label", {},
+        label, " ", h("input", { type: "checkbox", id: `c-${k}`, onchange: update })))),
+      status, agree, " ",
+      h("button", { id: "decline", onclick: () => app.replaceChildren(h("p", {
+        text: "Thank you for your interest. You may now close this window." })) },
+      "No thanks, I do not want to do this study"));
+    update();
+  },
+
+  instructions(st) {
+    app.replaceChildren(
+      h("h1", { text: "Thank you for agreeing to participate in our study!" }),
+      h("p", { text: "This study must be completed on a desktop or laptop on a supported " +
+        "browser (Chrome, Firefox, or Safari). This task may take up to twenty-five minutes." }),
+      h("p", { text: "If the page is reloaded by accident, the study continues where you " +
+        "left off. Finally, directions for compensation will be presented upon completion." }),
+      h("p", { text: "Chip, the blue triangle, has learned to play the three games below " +
+        "perfectly! Chip will teach you the best strategy for each game through a series of " +
+        "demonstrations. Following each set of demonstrations, you will show us what you " +
+        "learned by playing the game yourself using your keyboard. Before we dive in, let's " +
+        "head over to a practice game to get familiar with the keyboard controls and how the " +
+        "games work." }),
+      h("p", { class: "note", text: "Note: We recommend maximizing this window and viewing " +
+        "the study in full screen for the best experience!" }),
+      continueButton("Continue", () => advance(st.step_index, "continue"), { id: "next" }));
+  },
+
+  free_play(st) {
+    const s = st.step;
+    const board = h("div", { id: "board" });
+    app.replaceChildren(
+      h("h1", { text: "Free play" }),
+      h("p", { text: "Each game has locations, objects you can pick up and drop, objects " +
+        "you can move through, and walls. Each game will have a task that you must complete " +
+        "while minimizing your energy loss." }),
+      h("p", { text: "A subset of the following keys will be available to control Chip in " +
+        "each game:" }),
+      h("div", { class: "play" }, board, keyLegend(["up", "down", "left", "right", "pickup",
+        "dropoff"])),
+      h("p", { text: "If you accidentally take a wrong action, you may reset the simulation " +
+        "and start over. Feel free to play around with the controls. You can click the " +
+        "continue button whenever you feel ready to move on." }),
+      continueButton("Continue", () => advance(st.step_index, "continue"), { id: "next" }));
+    activate(new Game(board, s.layout, s.game, { keys: s.game.actions, resetAfterEnd: true,
+      label: "practice game" }));
+  },
+
+  practice(st) {
+    const s = st.step;
+    const board = h("div", { id: "board" });
+    const info = h("p", { id: "energy" });
+    const msg = h("p", { id: "practice-msg", role: "status" });
+    let used = s.attempts_used;
+    const left = () => s.attempts_allowed - used;
+    const game = new Game(board, s.layout, s.game, {
+      keys: s.game.actions, energy: { start: s.start_energy, weights: s.weights },
+      label: "practice game",
+      onMove: (g) => {
+        info.textContent = `Current energy: ${Math.round(g.value)}%. Attempts remaining: ${left()}`;
+        if (!g.ended && g.value <= 0) submit(g);
+      },
+      onEnd: (g) => submit(g),
+    });
+    const t0 = performance.now();
+    let sending = false;
+    async function submit(g) {
+      if (sending) return;
+      sending = true;
+      const r = await post(st.step_index, "practice_attempt",
+        { actions: g.moves, time_ms: Math.round(performance.now() - t0) });
+      sending = false;
+      if (!r.ok) { showError(r.detail || "Could not save your attempt."); return; }
+      used = r.attempts_used;
+      if (r.passed) {
+        msg.textContent = "Good job completing the task with the maximum possible energy " +
+          "remaining! Click 'Continue' below.";
+        keyHandler = null;
+        app.appendChild(continueButton("Continue", () => render(r.state), { id: "next" }));
+      } else if (r.state.status === "screened_out") {
+        keyHandler = null;
+        msg.textContent = "I'm sorry to inform you that you don't qualify for this study.";
+        app.appendChild(continueButton("Continue", () => render(r.state), { id: "next" }));
+      } else {
+        g.ended = true;
+        msg.textContent = `You completed the task with less than ${s.target_energy}% energy ` +
+          "remaining! Press 'r' to reset and try again.";
+        game.resetAfterEnd = true;
+        info.textContent = `Attempts remaining: ${left()}`;
+      }
+    }
+    app.replaceChildren(
+      h("h1", { text: "Practice game" }),
+      h("table", { class: "effects" },
+        h("tr", {}, h("th", { text: "Action" }), h("th", { text: "Energy change" })),
+        h("tr", {}, h("td", { text: "Moving through the orange diamond" }), h("td", { text: "+10%" })),
+        h("tr", {}, h("td", { text: "Any action that you take (e.g. moving right)" }),
+          h("td", { text: "-5%" }))),
+      h("p", { text: "Pick up the green pentagon and drop it off at the purple star with the " +
+        `maximum possible energy remaining. You should end with ${s.target_energy}% energy ` +
+        "left (you won't be able to move if energy falls to 0%). You will have " +
+        `${s.attempts_allowed} chances to get it right to continue on with the study!` }),
+      h("div", { class: "play" }, board, keyLegend(["up", "down", "left", "right", "pickup",
+        "dropoff"])),
+      info, msg);
+    game.onMove(game);
+    activate(game);
+  },
+
+  post_practice(st) {
+    app.replaceChildren(
+      h("h1", { text: "Good job on completing the practice game!" }),
+      h("p", { text: "Let's now head over to the three main games and begin the real study. " +
+        "In these games, you will not be told how each action changes Chip's energy level." }),
+      h("table", { class: "effects" },
+        h("tr", {}, h("th", { text: "Action" }), h("th", { text: "Energy change" })),
+        h("tr", {}, h("td", { text: "Any action that you take (e.g. moving right)" }),
+          h("td", { text: "???" }))),
+      h("p", { text: "Instead, you will have to figure that out and subsequently the best " +
+        "strategy for completing the task while minimizing energy loss by observing Chip's " +
+        "demonstrations!" }),
+      continueButton("Continue", () => advance(st.step_index, "continue"), { id: "next" }));
+  },
+
+  domain_intro(st) {
+    const info = st.step.info;
+    app.replaceChildren(
+      h("h1", { text: "Welcome to a new game!" }),
+      h("p", { text: `Task: ${info.task}` }),
+      h("p", { text: `The following actions affect the ${info.effects_word}:` }),
+      h("table", { class: "effects" },
+        h("tr", {}, h("th", { text: "Action" }), h("th", { text: "Energy change" })),
+        info.actions.map((a) => h("tr", {}, h("td", { text: a }), h("td", { text: "???" })))),
+      info.note ? h("p", { class: "note", text: info.note }) : null,
+      h("p", { text: "Chip will now provide a few demonstrations of the best strategy for " +
+        "this game." }),
+      continueButton("Continue", () => advance(st.step_index, "continue"), { id: "next" }));
+  },
+
+  demos(st) {
+    const s = st.step;
+    const done = s.completed.slice();
+    let k = Math.max(0, done.findIndex((n) => n < 1));
+    if (done.every((n) => n >= 1)) k = s.demos.length - 1;
+    let timer = null, playing = null;
+    const board = h("div", { id: "board" });
+    const title = h("h2", { id: "demo-title" });
+    const playBtn = h("button", { id: "play", class: "primary" });
+    const prev = h("button", { id: "prev" }, "Previous");
+    const next = h("button", { id: "next", class: "primary" }, "Next");
+    const last = h("p", { class: "note", id: "last-note" });
+    const stop = (completed) => {
+      if (timer) clearInterval(timer);
+      timer = null;
+      if (playing) {
+        post(st.step_index, "demo_play_end", { demo_index: playing.k, completed,
+          watch_ms: Math.round(performance.now() - playing.t0) });
+        playing = null;
+      }
+    };
+    const show = () => {
+      const d = s.demos[k];
+      title.textContent = `Demonstration ${k + 1} of ${s.demos.length}`;
+      board.replaceChildren(drawGrid(d.layout, d.states[0], { trail: [d.states[0].agent],
+        label: `demonstration ${k + 1}` }));
+      board.dataset.demo = String(k);
+      board.dataset.frame = "0";
+      playBtn.textContent = done[k] > 0 ? "Replay" : "Play";
+      prev.disabled = k === 0;
+      next.disabled = done[k] < 1;
+      next.textContent = k === s.demos.length - 1 ? "Continue" : "Next";
+      last.textContent = k === s.demos.length - 1
+        ? "Note: This is the last chance to review any previous demonstrations (by pressing " +
+          "on the 'Previous' button below) if you wish! (You will be asked about the " +
+          "informativeness and difficulty of the demonstrations on the following page.)" : "";
+    };
+    playBtn.addEventListener("click", () => {
+      stop(false);
+      const d = s.demos[k];
+      playing = { k, t0: performance.now() };
+      post(st.step_index, "demo_play_start", { demo_index: k });
+      let f = 0;
+      const trail = [d.states[0].agent];
+      playBtn.disabled = true;
+      timer = setInterval(() => {
+        f += 1;
+        if (f >= d.states.length) {
+          const kk = k;
+          stop(true);
+          done[kk] += 1;
+          playBtn.disabled = false;
+          show();
+          board.replaceChildren(drawGrid(d.layout, d.states[d.states.length - 1],
+            { trail, label: `demonstration ${kk + 1}`, banner: "Demonstration complete" }));
+          board.dataset.frame = String(d.states.length - 1);
+          board.dataset.watched = "true";
+          return;
+        }
+        trail.push(d.states[f].agent);
+        board.replaceChildren(drawGrid(d.layout, d.states[f], { trail,
+          label: `demonstration ${k + 1}` }));
+        board.dataset.frame = String(f);
+      }, s.step_ms);
+    });
+    prev.addEventListener("click", () => { stop(false); playBtn.disabled = false; k -= 1; show(); });
+    next.addEventListener("click", () => {
+      if (done[k] < 1) return;
+      stop(false);
+      if (k < s.demos.length - 1) { k += 1; playBtn.disabled = false; show(); }
+      else advance(st.step_index, "continue");
+    });
+    cleanup.push(() => stop(false));
+    app.replaceChildren(
+      h("h1", { text: "Demonstration of best strategy" }),
+      h("p", { text: "Feel free to watch the demonstration as many times as you want (but at " +
+        "least once)!" }),
+      title, board, h("div", { class: "controls" }, playBtn, " ", prev, " ", next), last);
+    show();
+  },
+
+  survey(st) {
+    const items = st.step.items;
+    const form = h("form", { id: "survey" });
+    for (const [key, item] of Object.entries(items)) {
+      form.appendChild(likert(key, item));
+    }
+    form.appendChild(h("label", { class: "comment" }, "Feel free to explain any of your " +
+      "selections above if you wish:", h("textarea", { name: "comment", maxlength: "2000" })));
+    const submit = continueButton("Continue", async (e) => {
+      e.preventDefault();
+      const fd = new FormData(form);
+      if (!fd.get("informativeness") || !fd.get("mental_effort")) {
+        showError("Please answer both questions.");
+        return;
+      }
+      submit.disabled = true;
+      await advance(st.step_index, "likert", { informativeness: +fd.get("informativeness"),
+        mental_effort: +fd.get("mental_effort"), comment: fd.get("comment") || "" });
+      submit.disabled = false;
+    }, { id: "next", type: "submit" });
+    form.appendChild(submit);
+    app.replaceChildren(h("h1", { text: "Survey" }),
+      h("p", { text: "You have viewed all of the demonstrations for this game! Please " +
+        "complete the survey below." }), form);
+  },
+
+  test(st) {
+    const s = st.step;
+    const board = h("div", { id: "board" });
+    const form = h("form", { id: "confidence" }, likert("confidence", s.confidence));
+    const submit = continueButton("Submit", null, { id: "next", type: "submit",
+      disabled: true });
+    form.appendChild(submit);
+    const t0 = performance.now();
+    const game = new Game(board, s.layout, s.game, { keys: s.info.keys, label: "test game",
+      onEnd: () => update() });
+    const update = () => {
+      const chosen = new FormData(form).get("confidence");
+      submit.disabled = !(game.ended && chosen);
+    };
+    form.addEventListener("change", update);
+    form.addEventListener("submit", async (e) => {
+      e.preventDefault();
+      if (!game.ended) return;
+      submit.disabled = true;
+      await advance(st.step_index, "test_response", { actions: game.moves,
+        time_ms: Math.round(performance.now() - t0),
+        confidence: +new FormData(form).get("confidence"), resets: game.resets });
+    });
+    app.replaceChildren(
+      h("h1", { text: "Participant gameplay" }),
+      h("p", { id: "trial", text: `Game ${s.trial} of 6` }),
+      h("p", { text: "Now it's your turn to play six games! Please demonstrate how you would " +
+        "complete this game's task while minimizing Chip's energy loss. You may reset at any " +
+        "time before the game ends if you think you've made a mistake." }),
+      h("p", { text: `Task: ${s.info.task}` }),
+      h("div", { class: "play" }, board, keyLegend(s.info.keys)),
+      h("p", { text: "Please answer the question below on the confidence of your gameplay " +
+        "after providing your demonstration. For fun: We will let you know how well you did " +
+        "at the end of all six games." }),
+      form);
+    activate(game);
+  },
+
+  feedback(st) {
+    const s = st.step;
+    const text = s.last
+      ? `You've completed all of the gameplays for the final game! If you were curious, you ` +
+        `got ${s.correct} out of ${s.total} games correct.`
+      : `You've completed all of the gameplays for this game! If you were curious, you got ` +
+        `${s.correct} out of ${s.total} games correct. Let's head over to the next one!`;
+    app.replaceChildren(h("h1", { text: "Nice work!" }), h("p", { id: "score", text }),
+      continueButton("Continue", () => advance(st.step_index, "continue"), { id: "next" }));
+  },
+
+  demographics(st) {
+    const s = st.step;
+    const form = h("form", { id: "demographics" },
+      h("label", {}, "Do you have any comments or feedback on the study?",
+        h("textarea", { name: "comments", maxlength: "4000" })),
+      h("label", {}, "What is your age? ", h("input", { type: "number", name: "age",
+        min: "18", max: "120", required: true })),
+      h("fieldset", {}, h("legend", { text: "Which of the following most accurately " +
+        "describes you?" }), s.genders.map((g) => h("label", { class: "opt" },
+        h("input", { type: "radio", name: "gender", value: g, required: true }), ` ${g}`))),
+      h("label", {}, "What is the highest level of education you have completed? (optional) ",
+        h("select", { name: "education" }, h("option", { value: "", text: "-" }),
+          s.education.map((e) => h("option", { value: e, text: e })))));
+    const submit = continueButton("Continue", async (e) => {
+      e.preventDefault();
+      if (!form.reportValidity()) return;
+      const fd = new FormData(form);
+      submit.disabled = true;
+      await advance(st.step_index, "demographics", { age: +fd.get("age"),
+        gender: fd.get("gender"), education: fd.get("education") || null,
+        comments: fd.get("comments") || "" });
+      submit.disabled = false;
+    }, { id: "next", type: "submit" });
+    form.appendChild(submit);
+    app.replaceChildren(h("h1", { text: "Final questions" }),
+      h("p", { text: "Congratulations on getting through all of the main games! Please " +
+        "answer the following questions, and then click 'Continue' for instructions on " +
+        "compensation." }), form);
+  },
+
+  complete(st) {
+    finish(st, "Study complete! Your responses have been saved.");
+  },
+
+  screened_out(st) {
+    finish(st, "Thank you for your time. Unfortunately you don't qualify for this study. " +
+      "Please return your submission on Prolific using the code below.");
+  },
+};
+
+function finish(st, text) {
+  keyHandler = null;
+  const s = st.step;
+  app.replaceChildren(h("h1", { text: st.step.kind === "complete" ? "Thank you!" : "Study ended" }),
+    h("p", { text }),
+    h("p", {}, "Your completion code is ", h("strong", { id: "code", text: s.code }), "."),
+    s.redirect ? h("p", {}, "You will now be taken back to Prolific. If nothing happens, ",
+      h("a", { href: s.redirect, id: "redirect" }, "click here"), " or enter the code above.")
+      : null);
+  if (s.redirect) setTimeout(() => { window.location.href = s.redirect; }, 1500);
+}
+
+function likert(key, item) {
+  return h("fieldset", { class: "likert", "data-item": key },
+    h("legend", { text: item.question }),
+    item.options.map((o, i) => h("label", { class: "opt" },
+      h("input", { type: "radio", name: key, value: String(i + 1), required: true }), ` ${o}`)));
+}
+
+function render(st) {
+  for (const f of cleanup) f();
+  cleanup = [];
+  keyHandler = null;
+  const bar = document.getElementById("progress-bar");
+  if (bar) bar.style.width = `${Math.round((100 * st.step_index) / Math.max(1, st.n_steps - 1))}%`;
+  app.dataset.step = st.step.kind;
+  app.dataset.stepIndex = String(st.step_index);
+  const page = pages[st.step.kind];
+  if (!page) { showError(`Unknown page ${st.step.kind}`); return; }
+  page(st);
+  window.scrollTo(0, 0);
+}
+
+async function refresh() {
+  const r = await api("GET", "/api/state");
+  if (r.status !== 200) { showError(r.data.detail || "Could not load the study."); return; }
+  render(r.data);
+}
+
+async function main() {
+  const q = new URLSearchParams(window.location.search);
+  const body = { prolific_pid: q.get("PROLIFIC_PID"), study_id: q.get("STUDY_ID"),
+    session_id: q.get("SESSION_ID"), mode: q.get("mode"), token };
+  const r = await api("POST", "/api/session", body);
+  if (r.status !== 200) { showError(r.data.detail || "Could not start the study."); return; }
+  token = r.data.token;
+  sessionStorage.setItem("cfteach-token", token);
+  const s = await api("GET", "/api/state");
+  if (s.status !== 200) { showError(s.data.detail || "Could not load the study."); return; }
+  if (r.data.resumed) await post(s.data.step_index, "page_load", {});
+  render(s.data);
+}
+
+main();

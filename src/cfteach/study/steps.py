@@ -1,0 +1,48 @@
+"""The server-driven step machine: the ordered list of pages one participant goes through.
+
+The list is a pure function of the study and the session's assignment (condition, domain
+order, test set, seed), so it is never stored and a reload lands on exactly the same page.
+"""
+
+from __future__ import annotations
+
+import random
+
+
+def test_order(seed: int, domain: str, n: int) -> list[int]:
+    """Shuffled test positions for one domain (seeded per session, so it is reproducible)."""
+    order = list(range(n))
+    random.Random(f"{seed}:{domain}").shuffle(order)
+    return order
+
+
+def build_steps(study: dict, domain_order: list[str], test_set: int, seed: int) -> list[dict]:
+    steps: list[dict] = [{"kind": "consent"}, {"kind": "instructions"}, {"kind": "free_play"},
+                         {"kind": "practice"}, {"kind": "post_practice"}]
+    for pos, dom in enumerate(domain_order, start=1):
+        base = {"domain": dom, "position": pos}
+        steps += [{"kind": "domain_intro", **base}, {"kind": "demos", **base},
+                  {"kind": "survey", **base}]
+        n = len(study["tests"][dom][test_set])
+        for trial, t in enumerate(test_order(seed, dom, n), start=1):
+            steps.append({"kind": "test", **base, "trial": trial, "test_index": t})
+        steps.append({"kind": "feedback", **base, "last": pos == len(domain_order)})
+    steps += [{"kind": "demographics"}, {"kind": "complete"}]
+    return steps
+
+
+#: Event types a participant may send on each kind of step (plus `page_load` anywhere).
+ALLOWED = {
+    "consent": {"consent"},
+    "instructions": {"continue"},
+    "free_play": {"continue"},
+    "practice": {"practice_attempt"},
+    "post_practice": {"continue"},
+    "domain_intro": {"continue"},
+    "demos": {"demo_play_start", "demo_play_end", "continue"},
+    "survey": {"likert"},
+    "test": {"test_response"},
+    "feedback": {"continue"},
+    "demographics": {"demographics"},
+    "complete": set(),
+}
