@@ -1,0 +1,24 @@
+"""Regions on the unit sphere cut by half-spaces ``w . n >= 0``.
+
+``Region`` reduces constraint sets, measures them (exactly for 3 features), samples them
+uniformly, and intersects them; ``sampling`` holds the human-model samplers. See
+docs/geometry.md.
+"""
+
+from .region import (
+    Region,
+    clear_cache,
+    infeasible_rows,
+    overlap,
+    reduce_many,
+    sphere_area,
+)
+
+__all__ = [
+    "Region",
+    "clear_cache",
+    "infeasible_rows",
+    "overlap",
+    "reduce_many",
+    "sphere_area",
+]

@@ -1,0 +1,271 @@
+"""``Region``: the part of the unit sphere where every constraint ``n . w >= 0`` holds.
+
+A region is immutable. Its canonical rows (see ``_normalize``) are computed on
+construction; everything else (interior direction, irredundant rows, area) is computed on
+first use and memoised in a process-wide cache keyed by the canonical rows, so the many
+repeated constraint sets of a teaching run are solved once.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Iterable, Sequence
+from math import gamma, pi
+from typing import Any
+
+import numpy as np
+
+from ._normalize import as_matrix, canonical_rows, unit_rows
+from .sphere3 import Solved3, polygon_vertices, solve3
+
+_CACHE: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+_CACHE_SIZE = 65536
+
+
+def clear_cache() -> None:
+    """Forget all memoised region solutions (for memory or benchmarking)."""
+    _CACHE.clear()
+    _RAW_CACHE.clear()
+
+
+def sphere_area(dim: int) -> float:
+    """Surface measure of the unit sphere S^(dim-1) in R^dim: 4 pi for dim = 3."""
+    return 2 * pi ** (dim / 2) / gamma(dim / 2)
+
+
+def infeasible_rows(dim: int, integral: bool = True) -> np.ndarray:
+    """Canonical constraints of an empty region: ``e_1 . w >= 0`` and ``-e_1 . w >= 0``.
+
+    They leave only a measure-zero great sphere, which this package treats as empty.
+    """
+    out = np.zeros((2, dim), dtype=np.int64 if integral else np.float64)
+    out[0, 0], out[1, 0] = 1, -1
+    return out
+
+
+class Region:
+    """``{w on the unit sphere S^(F-1) : normals @ w >= 0}``.
+
+    ``normals`` is ``[k, F]`` with F >= 3 (a single row may be given as ``[F]``; an empty
+    set needs ``dim=F`` or shape ``(0, F)``). Integral input (ints, or whole-number
+    floats) is handled exactly and reduced to primitive integer rows; other input to unit
+    vectors. Zero rows are dropped and duplicates collapse.
+
+    Measure-zero regions (e.g. ``c`` and ``-c`` together, which leave a great circle, or
+    constraints meeting in a single ray) count as empty: ``is_empty()`` is True, ``area()``
+    is 0, and ``reduced()`` returns ``infeasible_rows``.
+    """
+
+    __slots__ = ("_rows", "_integral", "_dim", "_solved", "_hint", "_unit", "__weakref__")
+
+    def __init__(self, normals: Any, *, dim: int | None = None) -> None:
+        arr = as_matrix(normals, dim)
+        self._dim = int(arr.shape[1])
+        self._rows, self._integral = canonical_rows(arr)
+        self._solved: Any = None
+        self._hint: list[np.ndarray] | None = None
+        self._unit: np.ndarray | None = None
+
+    @classmethod
+    def full(cls, dim: int = 3) -> Region:
+        """The whole sphere (no constraints)."""
+        return cls(np.zeros((0, dim), dtype=np.int64))
+
+    # ------------------------------------------------------------------ basics
+    @property
+    def dim(self) -> int:
+        """Number of features F (the sphere is S^(F-1))."""
+        return self._dim
+
+    @property
+    def rows(self) -> np.ndarray:
+        """Canonical rows: primitive ints or unit floats, deduplicated, sorted (a copy)."""
+        return self._rows.copy()
+
+    @property
+    def integral(self) -> bool:
+        """Whether the input was integral (and rows/reduced() are primitive int64)."""
+        return self._integral
+
+    def _units(self) -> np.ndarray:
+        if self._unit is None:
+            self._unit = unit_rows(self._rows)
+        return self._unit
+
+    def _key(self) -> tuple[Any, ...]:
+        return (self._dim, self._integral, len(self._rows), self._rows.tobytes())
+
+    def _solve(self) -> Any:
+        if self._solved is not None:
+            return self._solved
+        key = self._key()
+        hit = _CACHE.get(key)
+        if hit is None:
+            if self._dim == 3:
+                hit = solve3(self._rows, self._integral, self._hint)
+            else:
+                from ._highdim import solve_nd
+
+                hit = solve_nd(self._rows, self._units(), self._integral, self._hint)
+            _CACHE[key] = hit
+            if len(_CACHE) > _CACHE_SIZE:
+                _CACHE.popitem(last=False)
+        self._solved = hit
+        return hit
+
+    # ------------------------------------------------------------------ queries
+    def is_empty(self) -> bool:
+        """True when the region has zero measure (no strictly interior direction)."""
+        return bool(self._solve().empty)
+
+    def interior_point(self) -> np.ndarray | None:
+        """A unit vector strictly inside (margin > 1e-12), or None when empty."""
+        u = self._solve().interior
+        return None if u is None else u.copy()
+
+    def reduced(self) -> np.ndarray:
+        """The irredundant constraints (the facets of the cone).
+
+        Primitive ``int64`` rows for integral input, unit ``float64`` rows otherwise. For
+        F = 3 the rows are in cyclic order, counter-clockwise seen from outside the sphere
+        looking at the region (``det(n_j, n_{j+1}, u) > 0`` for an interior ``u``),
+        starting at the lexicographically smallest row. For F > 3 they are in sorted order.
+        The whole sphere gives shape ``(0, F)``; an empty region gives ``infeasible_rows``.
+        """
+        s = self._solve()
+        if s.empty:
+            return infeasible_rows(self._dim, self._integral)
+        return self._rows[s.order].copy()
+
+    def area(self) -> float:
+        """Surface measure of the region: exact for F = 3, an estimate for F > 3.
+
+        See ``area_estimate`` for the standard error of the F > 3 estimate.
+        """
+        return self.area_estimate()[0]
+
+    def area_estimate(self, n_samples: int = 200_000, seed: int = 0) -> tuple[float, float]:
+        """``(area, standard_error)``; the error is 0.0 where the value is exact."""
+        s = self._solve()
+        if isinstance(s, Solved3):
+            return float(s.area), 0.0
+        from ._highdim import area_nd
+
+        return area_nd(self, s, n_samples=n_samples, seed=seed)
+
+    def fraction(self) -> float:
+        """Area as a fraction of the whole sphere (1.0 for no constraints)."""
+        return self.area() / sphere_area(self._dim)
+
+    def contains(self, w: Any, tol: float = 1e-12) -> Any:
+        """Whether direction(s) ``w`` (``[F]`` or ``[m, F]``, any positive length) satisfy
+        every constraint, to within ``tol`` in the cosine. Tests the constraints literally,
+        so points of a measure-zero ("empty") region still count as contained."""
+        arr = np.asarray(w, dtype=np.float64)
+        single = arr.ndim == 1
+        pts = arr[None, :] if single else arr
+        if pts.ndim != 2 or pts.shape[1] != self._dim:
+            raise ValueError(
+                f"w must have shape [{self._dim}] or [m, {self._dim}], got {arr.shape}"
+            )
+        norms = np.linalg.norm(pts, axis=1)
+        if np.any(norms == 0) or not np.all(np.isfinite(norms)):
+            raise ValueError("w must be finite and nonzero (a direction on the sphere)")
+        if len(self._rows) == 0:
+            inside = np.ones(len(pts), dtype=bool)
+        else:
+            inside = np.all(self._units() @ (pts / norms[:, None]).T >= -tol, axis=0)
+        return bool(inside[0]) if single else inside
+
+    def vertices(self) -> np.ndarray:
+        """Corners (F = 3): ``[m, 3]`` unit vectors in the order of ``reduced()``; vertex j is
+        where facets j and j+1 meet. A lune gives its two poles; a hemisphere or the whole
+        sphere none. Raises for F > 3 and for empty regions."""
+        if self._dim != 3:
+            raise ValueError("vertices() is only defined for 3 features")
+        s = self._solve()
+        if s.empty:
+            raise ValueError("an empty region has no vertices")
+        return polygon_vertices(self._units()[s.order])
+
+    def sample(self, m: int, rng: np.random.Generator | int | None = None) -> np.ndarray:
+        """``m`` unit vectors drawn uniformly from the region, shape ``[m, F]``.
+
+        Exact and O(1) per sample for F = 3 (triangle fan + Arvo's map); hit-and-run
+        (approximate, MCMC) for F > 3. Reproducible for a given ``rng`` seed/Generator.
+        """
+        if m < 0:
+            raise ValueError(f"m must be non-negative, got {m}")
+        rng = np.random.default_rng(rng)
+        s = self._solve()
+        if s.empty:
+            raise ValueError("cannot sample from an empty (measure-zero) region")
+        if m == 0:
+            return np.zeros((0, self._dim))
+        if self._dim != 3:
+            from ._highdim import hit_and_run
+
+            return hit_and_run(self._units()[s.order], s.interior, m, rng)
+        from . import _sample3
+
+        unit = self._units()[s.order]
+        if len(unit) == 0:
+            return _sample3.sample_sphere(m, rng)
+        if len(unit) == 1:
+            return _sample3.sample_hemisphere(unit[0], m, rng)
+        if len(unit) == 2:
+            return _sample3.sample_lune(unit[0], unit[1], m, rng)
+        return _sample3.sample_polygon(unit, s.interior, m, rng)
+
+    # ------------------------------------------------------------------ algebra
+    def __and__(self, other: Region) -> Region:
+        if not isinstance(other, Region):
+            return NotImplemented
+        if other._dim != self._dim:
+            raise ValueError(f"cannot intersect regions of dimension {self._dim} and {other._dim}")
+        if self._integral and other._integral:
+            stacked: np.ndarray = np.vstack([self._rows, other._rows])
+        else:
+            stacked = np.vstack([self._units(), other._units()])
+        out = Region(stacked, dim=self._dim)
+        hints = [r._solved.interior for r in (self, other)
+                 if r._solved is not None and r._solved.interior is not None]
+        out._hint = hints or None
+        return out
+
+    def __repr__(self) -> str:
+        kind = "int" if self._integral else "float"
+        return f"Region(dim={self._dim}, rows={len(self._rows)}, {kind})"
+
+
+def overlap(a: Region, b: Region) -> float:
+    """Area of the intersection of two regions (both are cones, so it is one region)."""
+    return (a & b).area()
+
+
+_RAW_CACHE: OrderedDict[tuple[Any, ...], tuple[np.ndarray, float]] = OrderedDict()
+
+
+def reduce_many(
+    arrays: Iterable[Any] | Sequence[Any], dim: int | None = None
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """Reduce and measure many constraint sets: ``(reduced arrays, areas)``.
+
+    Identical inputs (same bytes) are answered from a cache without even normalising
+    them; identical canonical row sets share one solution through the region cache.
+    """
+    reduced: list[np.ndarray] = []
+    areas: list[float] = []
+    for arr in arrays:
+        a = np.asarray(arr)
+        key = (a.dtype.str, a.shape, a.tobytes())
+        hit = _RAW_CACHE.get(key)
+        if hit is None:
+            r = Region(a, dim=dim)
+            hit = (r.reduced(), r.area())
+            _RAW_CACHE[key] = hit
+            if len(_RAW_CACHE) > _CACHE_SIZE:
+                _RAW_CACHE.popitem(last=False)
+        reduced.append(hit[0].copy())
+        areas.append(hit[1])
+    return reduced, np.asarray(areas, dtype=np.float64)

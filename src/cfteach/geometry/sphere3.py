@@ -1,0 +1,241 @@
+"""Exact geometry of ``{w in S^2 : N w >= 0}``.
+
+With a direction ``u`` strictly inside the region, the dual cone ``cone(n_i)`` is pointed
+and its cross-section at ``x . u = 1`` is the convex hull of the gnomonic projections
+``n_i / (n_i . u)``. Its vertices are the irredundant constraints, in cyclic order, and the
+orientation of three projected points is the sign of ``det(n_i, n_j, n_l)`` - so for small
+integer inputs the hull is computed with exact integer determinants. The area then follows
+from Gauss-Bonnet: ``A = 2 pi - sum_j angle(n_j, n_{j+1})`` (the perimeter of the polar
+polygon), which gives 2 pi for one constraint and ``2 pi - 2 theta`` for a lune.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from ._interior import MARGIN_EPS, interior_direction
+from ._normalize import INT_EXACT_LIMIT, unit_rows
+
+#: Up to this many rows the hull is found with the vectorised O(k^3) determinant test
+#: (exact for integers); above it, with Qhull on the gnomonic projection.
+SMALL_K = 40
+_FLOAT_TOL = 1e-12
+
+
+@dataclass(frozen=True)
+class Solved3:
+    """Everything derived from one canonical row set (cached by content)."""
+
+    empty: bool
+    order: np.ndarray  # indices of the irredundant rows, counter-clockwise around interior
+    interior: np.ndarray | None  # unit vector strictly inside, None if empty
+    area: float
+
+
+def solve3(rows: np.ndarray, integral: bool, hint: list[np.ndarray] | None = None) -> Solved3:
+    """Irredundant rows (cyclic order), interior direction and exact area of a region."""
+    k = len(rows)
+    if k == 0:
+        return Solved3(False, np.zeros(0, dtype=np.intp), np.array([0.0, 0.0, 1.0]), 4 * np.pi)
+    unit = unit_rows(rows)
+    exact = integral and int(np.abs(rows).max()) <= INT_EXACT_LIMIT
+    if k == 1:
+        return Solved3(False, np.zeros(1, dtype=np.intp), unit[0].copy(), 2 * np.pi)
+    if k <= SMALL_K:
+        return _solve_small(rows if exact else unit, exact, unit, hint)
+    u = interior_direction(rows, unit, exact, hint)
+    if u is None:
+        return _EMPTY
+    order = _order_hull(unit, u, rows if exact else None)
+    order = _canonical_start(rows, order)
+    return Solved3(False, order, u, polygon_area(unit[order]))
+
+
+_EMPTY = Solved3(True, np.zeros(0, dtype=np.intp), None, 0.0)
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis (np.cross without its axis-juggling overhead)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def _solve_small(
+    p: np.ndarray, exact: bool, unit: np.ndarray, hint: list[np.ndarray] | None
+) -> Solved3:
+    """Small row sets: one vectorised determinant tensor does emptiness, interior, hull.
+
+    ``d[i, j, l] = det(n_i, n_j, n_l) = n_l . (n_i x n_j)``. A pair with ``d[i, j, :] >= 0``
+    is a corner ``n_i x n_j`` of the region. A full-dimensional region cut by two or more
+    non-parallel constraints always has such a corner (a vertex, or the axis of a lune),
+    so none at all proves emptiness (exactly, for integer rows).
+    """
+    pf = p.astype(np.float64) if exact else p  # small ints: float64 products are exact
+    cr = cross(pf[:, None, :], pf[None, :, :])  # [k, k, 3]
+    d = cr @ pf.T
+    tol = 0.0 if exact else _FLOAT_TOL
+    cand = (d >= -tol).all(axis=2)
+    np.fill_diagonal(cand, False)
+    cand &= (np.abs(cr) > tol).any(axis=2)
+    if not cand.any():
+        return _EMPTY
+    u = None
+    if hint:
+        for h in hint:
+            if np.min(unit @ h) > MARGIN_EPS:
+                u = h / np.linalg.norm(h)
+                break
+    if u is None:
+        for cand_u in (pf.sum(axis=0), cr[cand].sum(axis=0)):
+            if np.all(pf @ cand_u > tol):
+                uf = cand_u.astype(np.float64)
+                uf /= np.sqrt(uf @ uf)
+                if np.min(unit @ uf) > MARGIN_EPS:
+                    u = uf
+                    break
+    if u is None:
+        u = interior_direction(p, unit, False, None)
+        if u is None:
+            return _EMPTY
+    order = _order_from_pairs(p, exact, cand, d, unit, u)
+    order = _canonical_start(p, order)
+    return Solved3(False, order, u, polygon_area(unit[order]))
+
+
+def _order_from_pairs(
+    p: np.ndarray, exact: bool, cand: np.ndarray, d: np.ndarray, unit: np.ndarray, u: np.ndarray
+) -> np.ndarray:
+    """Hull edges among corner pairs, then the vertices in cyclic order.
+
+    Directed pair (i, j) is a hull edge iff every l has det(n_i, n_j, n_l) > 0, or = 0 and
+    n_l lies in cone(n_i, n_j); Binet-Cauchy on the Gram matrix tells which.
+    """
+    tol = 0 if exact else _FLOAT_TOL
+    ii, jj = np.nonzero(cand)
+    dd = d[ii, jj]  # [c, k]
+    zero = np.abs(dd) <= tol
+    if zero.sum() > 2 * len(ii):  # some pair has collinear extras: check betweenness
+        g = p @ p.T
+        gd = np.diag(g)
+        e1 = gd[ii, None] * g[jj, :] - g[ii, jj][:, None] * g[ii, :]
+        e2 = g[ii, :] * gd[jj, None] - g[jj, :] * g[ii, jj][:, None]
+        good = np.all(~zero | ((e1 >= -tol) & (e2 >= -tol)), axis=1)
+        ii, jj = ii[good], jj[good]
+    verts = np.unique(ii)
+    if len(verts) <= 2:
+        return verts.astype(np.intp)
+    if len(ii) == len(verts):
+        succ = dict(zip(ii.tolist(), jj.tolist(), strict=True))
+        order = [int(verts[0])]
+        for _ in range(len(verts)):
+            nxt = succ.get(order[-1])
+            if nxt is None or nxt == order[0]:
+                break
+            order.append(nxt)
+        if len(order) == len(verts) and succ.get(order[-1]) == order[0]:
+            return np.asarray(order, dtype=np.intp)
+    return verts[_angular_order(unit[verts], u)].astype(np.intp)
+
+
+def polygon_area(unit_ordered: np.ndarray) -> float:
+    """2 pi minus the cyclic sum of angles between consecutive (irredundant) unit normals."""
+    a = unit_ordered
+    nxt = np.arange(1, len(a) + 1)
+    nxt[-1] = 0
+    b = a[nxt]
+    cr = cross(a, b)
+    ang = np.arctan2(np.sqrt((cr * cr).sum(axis=1)), (a * b).sum(axis=1))
+    return max(float(2 * np.pi - ang.sum()), 0.0)
+
+
+def _canonical_start(rows: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Rotate the cycle so it starts at the smallest row (canonical rows are sorted)."""
+    if len(order) <= 1:
+        return order
+    first = int(np.argmin(order))
+    return np.concatenate([order[first:], order[:first]])
+
+
+def _plane_basis(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal e1, e2 with e1 x e2 = u."""
+    a = np.zeros(3)
+    a[int(np.argmin(np.abs(u)))] = 1.0
+    e1 = np.cross(a, u)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(u, e1)
+
+
+def _project(unit: np.ndarray, u: np.ndarray) -> np.ndarray:
+    e1, e2 = _plane_basis(u)
+    p = unit / (unit @ u)[:, None]
+    return np.stack([p @ e1, p @ e2], axis=1)
+
+
+def _angular_order(unit: np.ndarray, u: np.ndarray) -> np.ndarray:
+    xy = _project(unit, u)
+    c = xy.mean(axis=0)
+    return np.argsort(np.arctan2(xy[:, 1] - c[1], xy[:, 0] - c[0]), kind="stable")
+
+
+def _order_hull(unit: np.ndarray, u: np.ndarray, exact_rows: np.ndarray | None) -> np.ndarray:
+    """Qhull on the gnomonic projection (counter-clockwise for 2-D input)."""
+    xy = _project(unit, u)
+    centred = xy - xy.mean(axis=0)
+    sv = np.linalg.svd(centred, compute_uv=False)
+    if sv[0] == 0.0:
+        return np.zeros(1, dtype=np.intp)
+    if sv[1] <= 1e-12 * sv[0]:
+        return _line_extremes(centred)
+    try:
+        order = ConvexHull(xy).vertices.astype(np.intp)
+    except QhullError:
+        return _line_extremes(centred)
+    if exact_rows is not None:
+        order = _drop_flat_vertices(exact_rows, order)
+    return order
+
+
+def _line_extremes(centred: np.ndarray) -> np.ndarray:
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    t = centred @ vt[0]
+    return np.array([int(np.argmin(t)), int(np.argmax(t))], dtype=np.intp)
+
+
+def _drop_flat_vertices(rows: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Remove hull vertices whose exact turn det(prev, cur, next) is not positive."""
+    order = list(order)
+    changed = True
+    while changed and len(order) > 2:
+        changed = False
+        for idx in range(len(order)):
+            a, b, c = order[idx - 1], order[idx], order[(idx + 1) % len(order)]
+            if int(np.cross(rows[a], rows[b]) @ rows[c]) <= 0:
+                del order[idx]
+                changed = True
+                break
+    return np.asarray(order, dtype=np.intp)
+
+
+def polygon_vertices(unit_ordered: np.ndarray) -> np.ndarray:
+    """Corners of the region: ``normalise(n_j x n_{j+1})``; a lune gives its two poles."""
+    m = len(unit_ordered)
+    if m < 2:
+        return np.zeros((0, 3))
+    if m == 2:
+        v = np.cross(unit_ordered[0], unit_ordered[1])
+        v /= np.linalg.norm(v)
+        return np.stack([v, -v])
+    v = np.cross(unit_ordered, np.roll(unit_ordered, -1, axis=0))
+    return v / np.linalg.norm(v, axis=1)[:, None]
+
+
+def triangle_area(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Solid angle of spherical triangles (Van Oosterom & Strackee 1983), vectorised."""
+    num = np.abs(np.einsum("...i,...i->...", a, np.cross(b, c)))
+    den = 1.0 + np.einsum("...i,...i->...", a, b) + np.einsum("...i,...i->...", b, c)
+    den = den + np.einsum("...i,...i->...", c, a)
+    return 2.0 * np.arctan2(num, den)
