@@ -13,6 +13,7 @@ from .region import (
     reduce_many,
     sphere_area,
 )
+from .sampling import sample_reference_grid, sample_uniform
 
 __all__ = [
     "Region",
@@ -20,5 +21,7 @@ __all__ = [
     "infeasible_rows",
     "overlap",
     "reduce_many",
+    "sample_reference_grid",
+    "sample_uniform",
     "sphere_area",
 ]

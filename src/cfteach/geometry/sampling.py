@@ -1,0 +1,101 @@
+"""Human-model samplers: draw m candidate weight vectors w_h from a belief region B(w).
+
+``sample_reference_grid`` reproduces the reference implementation's deterministic sampler
+(reference-spec 6.1) bit for bit in structure: a 1000 x 1000 coarse grid to bound the
+region, an inverse-CDF fine grid refined until m points survive, then greedy k-centres.
+It is biased (grid-aligned, favours the bounding box's corners) and its cost grows as the
+region shrinks; ``sample_uniform`` draws exactly uniform samples instead.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ._normalize import as_matrix
+from .region import Region
+
+_COARSE = 1000
+_START_DENSITY = 5
+_MAX_DENSITY = 10_000
+
+
+@lru_cache(maxsize=1)
+def _coarse_grid() -> np.ndarray:
+    """The reference's 1000 x 1000 (azimuth, polar) grid, u-major; computed once."""
+    u = np.linspace(0, 2 * np.pi, _COARSE)
+    v = np.linspace(0, np.pi, _COARSE)
+    uu, vv = np.meshgrid(u, v, indexing="ij")  # u-major order
+    grid = np.stack([np.cos(uu) * np.sin(vv), np.sin(uu) * np.sin(vv), np.cos(vv)], axis=-1)
+    grid = grid.reshape(-1, 3)
+    grid.setflags(write=False)
+    return grid
+
+
+def _feasible(points: np.ndarray, constraints: np.ndarray) -> np.ndarray:
+    if len(constraints) == 0:
+        return np.ones(len(points), dtype=bool)
+    return np.all(points @ constraints.T >= 0, axis=1)
+
+
+def greedy_k_centres(points: np.ndarray, m: int) -> np.ndarray:
+    """Indices of m points chosen farthest-first from index 0 (first index on ties)."""
+    chosen = [0]
+    nearest = np.linalg.norm(points - points[0], axis=1)
+    for _ in range(m - 1):
+        j = int(np.argmax(nearest))
+        chosen.append(j)
+        nearest = np.minimum(nearest, np.linalg.norm(points - points[j], axis=1))
+    return np.asarray(chosen, dtype=np.intp)
+
+
+def sample_reference_grid(normals: Any, m: int = 8) -> np.ndarray:
+    """The reference's deterministic human-model sampler (3 features only), ``[m, 3]``.
+
+    Returns shape ``(0, 3)`` when no coarse grid point satisfies the constraints (the
+    reference then stops teaching).
+    """
+    cons = as_matrix(normals, dim=3 if np.size(normals) == 0 else None).astype(np.float64)
+    if cons.shape[1] != 3:
+        raise ValueError(f"the reference grid sampler works on 3 features, got {cons.shape[1]}")
+    if m < 1:
+        raise ValueError(f"m must be at least 1, got {m}")
+    coarse = _coarse_grid()
+    coarse = coarse[_feasible(coarse, cons)]
+    if len(coarse) == 0:
+        return np.zeros((0, 3))
+    azi = np.arctan2(coarse[:, 1], coarse[:, 0])
+    ele = np.arccos(coarse[:, 2] / np.linalg.norm(coarse, axis=1))
+    u_lo, u_hi = azi.min() / (2 * np.pi), azi.max() / (2 * np.pi)
+    v_lo, v_hi = (1 - np.cos(ele.min())) / 2, (1 - np.cos(ele.max())) / 2
+    density = _START_DENSITY
+    while density <= _MAX_DENSITY:
+        theta = 2 * np.pi * np.linspace(u_lo, u_hi, density * m)
+        phi = np.arccos(1 - 2 * np.linspace(v_lo, v_hi, density * m))
+        tt, pp = np.meshgrid(theta, phi)  # rows = phi (outer index)
+        tt, pp = tt.flatten(), pp.flatten()
+        fine = np.stack([np.cos(tt) * np.sin(pp), np.sin(tt) * np.sin(pp), np.cos(pp)], axis=1)
+        fine = fine[_feasible(fine, cons)]
+        if len(fine) == m:
+            return fine
+        if len(fine) > m:
+            return fine[greedy_k_centres(fine, m)]
+        density += 1
+    raise RuntimeError(
+        f"the reference grid sampler found fewer than {m} points at density {_MAX_DENSITY}"
+    )
+
+
+def sample_uniform(
+    normals: Any, m: int, rng: np.random.Generator | int | None = None
+) -> np.ndarray:
+    """``m`` exactly uniform draws from the region (``Region.sample``), ``[m, F]``.
+
+    Returns shape ``(0, F)`` for an empty (measure-zero) region, like the grid sampler.
+    """
+    region = normals if isinstance(normals, Region) else Region(normals)
+    if region.is_empty():
+        return np.zeros((0, region.dim))
+    return region.sample(m, rng)
