@@ -1,7 +1,76 @@
-"""Commands of this family are added as their issues land."""
+"""`cfteach reproduce`: the main job (all conditions, test selection, pictures, HTML report).
+
+Heavy imports happen inside the command so `cfteach --help` stays fast.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
 
 import typer
 
 
+def _split(values: list[str] | None) -> list[str] | None:
+    if not values:
+        return None
+    return [v.strip() for item in values for v in item.split(",") if v.strip()]
+
+
+def reproduce(
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Output directory (JSON, pictures, index.html).")
+    ] = Path("out/reproduce"),
+    domains: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--domains",
+            "-d",
+            help="Domain names or TOML files (repeat or comma-separate); default: all built-ins.",
+        ),
+    ] = None,
+    profile: Annotated[
+        str, typer.Option(help="Settings profile: 'default' or 'reference' (docs/profiles.md).")
+    ] = "default",
+    seed: Annotated[int, typer.Option(help="Seed everything random is drawn from.")] = 0,
+    report_only: Annotated[
+        bool,
+        typer.Option(
+            "--report-only", help="Do not teach; rebuild the report from the JSON files in --out."
+        ),
+    ] = False,
+    no_report: Annotated[
+        bool, typer.Option("--no-report", help="Write the JSON files only.")
+    ] = False,
+) -> None:
+    """Run every condition and test selection for the domains; write JSON, pictures and a
+    self-contained index.html report."""
+    from cfteach.report import build_report, load_results
+    from cfteach.report.reproduce import reproduce as run
+
+    if report_only:
+        try:
+            results = load_results(out)
+        except (OSError, ValueError) as exc:
+            raise typer.BadParameter(str(exc), param_hint="--out") from exc
+        index = build_report(out, results)
+        typer.echo(f"Report: {index}")
+        return
+    try:
+        results, index = run(out, _split(domains), profile=profile, seed=seed, report=not no_report)
+    except (ValueError, FileNotFoundError) as exc:
+        typer.echo(f"Error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    for name, res in results.items():
+        n = ", ".join(f"{c} {len(cur['demos'])}" for c, cur in res.curricula.items())
+        levels = res.tests["tests"] if res.tests else {}
+        t = ", ".join(f"{lv} {len(v)}" for lv, v in levels.items())
+        typer.echo(f"{name}: demonstrations {n}; tests {t}")
+    typer.echo(f"JSON: {out}/<domain>/<condition>.json, {out}/<domain>/tests.json")
+    if index is not None:
+        typer.echo(f"Report: {index}")
+
+
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the `cfteach` app."""
+    """Add `cfteach reproduce` to the app."""
+    app.command("reproduce")(reproduce)

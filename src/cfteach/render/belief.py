@@ -187,11 +187,12 @@ def plot_belief_sphere(
         s = s / np.linalg.norm(s, axis=1, keepdims=True)
         s = s[front(s)] * lift
         ax.scatter(s[:, 0], s[:, 1], s[:, 2], color="#d62728", s=12, depthshade=False)
+    labels: list[tuple[np.ndarray, str]] = []
     for k, name in enumerate(list(feature_names)[:3]):
         axis = np.eye(3)[k]
         if axis @ eye > -0.2:  # a stub for each positive axis that is not hidden
-            ax.plot(*zip(1.0 * axis, 1.3 * axis, strict=True), color="#444444", lw=1.0)
-        ax.text(*(1.42 * axis), f"+{name}", fontsize=8, ha="center", va="center")
+            ax.plot(*zip(1.0 * axis, 1.25 * axis, strict=True), color="#444444", lw=1.0)
+        labels.append((1.33 * axis, f"+{name}"))
     if w_true is not None:
         w = np.asarray(w_true, dtype=float)
         w = w / np.linalg.norm(w)
@@ -199,14 +200,29 @@ def plot_belief_sphere(
             ax.scatter(*(w[:, None] * lift), color="#b71c1c", marker="*", s=110, depthshade=False)
         ax.text(*(w * 1.18), "w*", color="#b71c1c", fontsize=9, ha="center")
     ax.view_init(elev=view[0], azim=view[1])
-    ax.set_box_aspect((1, 1, 1), zoom=1.45)
+    ax.set_box_aspect((1, 1, 1), zoom=1.3)
     ax.set_xlim(-1.05, 1.05)
     ax.set_ylim(-1.05, 1.05)
     ax.set_zlim(-1.05, 1.05)
     ax.set_axis_off()
+    _place_labels(fig, ax, labels)
     if title:
         ax.set_title(title, fontsize=10)
     return fig
+
+
+def _place_labels(fig: Any, ax: Any, labels: list[tuple[np.ndarray, str]]) -> None:
+    """Axis names in figure coordinates, pushed inwards so long feature names are not cut."""
+    from mpl_toolkits.mplot3d import proj3d
+
+    for point, text in labels:
+        x2, y2, _ = proj3d.proj_transform(*point, ax.get_proj())
+        fx, fy = fig.transFigure.inverted().transform(ax.transData.transform((x2, y2)))
+        fy = min(max(fy, 0.03), 0.9)
+        if fx > 0.5:
+            fig.text(min(fx, 0.98), fy, text, fontsize=8, ha="right", va="center")
+        else:
+            fig.text(max(fx, 0.02), fy, text, fontsize=8, ha="left", va="center")
 
 
 def belief_area_series(curriculum: Mapping[str, Any]) -> tuple[list[int], list[float]]:

@@ -1,0 +1,358 @@
+"""Pictures + `index.html` for a set of per-domain results (see `cfteach.report`)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
+LEVELS = ("low", "medium", "high")
+CURRICULUM_SCHEMA = "cfteach.curriculum/1"
+TESTS_SCHEMA = "cfteach.tests/1"
+
+LayoutFn = Callable[[str, Mapping[str, Any]], Any]
+
+
+@dataclass
+class DomainResults:
+    """What the report shows for one domain: a curriculum per condition and a test set."""
+
+    curricula: dict[str, dict[str, Any]] = field(default_factory=dict)
+    tests: dict[str, Any] | None = None
+
+
+def _as_domain_results(name: str, value: Any) -> DomainResults:
+    if isinstance(value, DomainResults):
+        res = value
+    elif isinstance(value, Mapping):
+        unknown = set(value) - {"curricula", "tests"}
+        if unknown:
+            raise ValueError(f"results[{name!r}]: unknown keys {sorted(unknown)}")
+        res = DomainResults(dict(value.get("curricula") or {}), value.get("tests"))
+    else:
+        raise TypeError(f"results[{name!r}] must be a DomainResults or a mapping")
+    for cond, cur in res.curricula.items():
+        where = f"results[{name!r}].curricula[{cond!r}]"
+        if not isinstance(cur, Mapping) or cur.get("schema") != CURRICULUM_SCHEMA:
+            raise ValueError(f"{where}: not a {CURRICULUM_SCHEMA} dict")
+        if cur.get("domain") != name:
+            raise ValueError(f"{where}: its domain is {cur.get('domain')!r}, not {name!r}")
+        for key in ("demos", "weights", "feature_names", "final_belief"):
+            if key not in cur:
+                raise ValueError(f"{where}: missing key {key!r}")
+    if res.tests is not None:
+        where = f"results[{name!r}].tests"
+        if not isinstance(res.tests, Mapping) or res.tests.get("schema") != TESTS_SCHEMA:
+            raise ValueError(f"{where}: not a {TESTS_SCHEMA} dict")
+        for key in ("tests", "belief", "weights", "feature_names"):
+            if key not in res.tests:
+                raise ValueError(f"{where}: missing key {key!r}")
+    if not res.curricula and res.tests is None:
+        raise ValueError(f"results[{name!r}]: nothing to report (no curricula, no tests)")
+    return res
+
+
+def default_layouts() -> LayoutFn:
+    """Layouts from the domain files: `cfteach.domains.load(name).instance(env_index)`."""
+    from cfteach import domains
+    from cfteach.render import layout_from_instance
+
+    loaded: dict[str, Any] = {}
+    cache: dict[tuple[str, int], Any] = {}
+
+    def layout(domain: str, demo: Mapping[str, Any]) -> Any:
+        if domain not in loaded:
+            loaded[domain] = domains.load(domain)
+        key = (domain, int(demo["env_index"]))
+        if key not in cache:
+            cache[key] = layout_from_instance(loaded[domain].instance(key[1]))
+        return cache[key]
+
+    return layout
+
+
+def write_results(out_dir: str | Path, results: Mapping[str, Any]) -> list[Path]:
+    """Write `<out>/<domain>/<condition>.json` and `<out>/<domain>/tests.json`."""
+    out = Path(out_dir)
+    written = []
+    for name, value in results.items():
+        res = _as_domain_results(name, value)
+        ddir = out / name
+        ddir.mkdir(parents=True, exist_ok=True)
+        for cond, cur in res.curricula.items():
+            written.append(_dump(ddir / f"{cond}.json", cur))
+        if res.tests is not None:
+            written.append(_dump(ddir / "tests.json", res.tests))
+    return written
+
+
+def _dump(path: Path, data: Mapping[str, Any]) -> Path:
+    path.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    return path
+
+
+def load_results(out_dir: str | Path) -> dict[str, DomainResults]:
+    """Read back what `write_results` wrote (every domain folder with JSON files)."""
+    out = Path(out_dir)
+    results: dict[str, DomainResults] = {}
+    for ddir in sorted(p for p in out.iterdir() if p.is_dir()):
+        res = DomainResults()
+        for path in sorted(ddir.glob("*.json")):
+            data = json.loads(path.read_text(encoding="utf-8"))
+            if data.get("schema") == CURRICULUM_SCHEMA:
+                res.curricula[data["condition"]] = data
+            elif data.get("schema") == TESTS_SCHEMA:
+                res.tests = data
+        if res.curricula or res.tests is not None:
+            results[ddir.name] = res
+    if not results:
+        raise ValueError(f"{out}: no curriculum or test JSON files found in its domain folders")
+    return results
+
+
+def _fmt_env(demo: Mapping[str, Any]) -> str:
+    return "".join(str(int(b)) for b in demo.get("env_code", []))
+
+
+def _progress(total: int, enabled: bool | None, desc: str) -> Any:
+    from tqdm.auto import tqdm
+
+    if enabled is None:
+        enabled = sys.stderr.isatty()
+    return tqdm(total=total, desc=desc, disable=not enabled, file=sys.stderr, leave=False)
+
+
+def build_report(
+    out_dir: str | Path,
+    results: Mapping[str, Any],
+    *,
+    layouts: LayoutFn | None = None,
+    meta: Mapping[str, Any] | None = None,
+    sphere_resolution: int = 60,
+    gif_cell_px: int = 36,
+    test_cell_px: int = 36,
+    progress: bool | None = None,
+) -> Path:
+    """Draw every picture and write `<out_dir>/index.html`; return the HTML file's path.
+
+    `results` maps a domain name to `{"curricula": {condition: curriculum_dict},
+    "tests": tests_dict}` (or a `DomainResults`). `layouts(domain, demo)` gives the grid
+    `Layout` of a demonstration; by default it is read from the domain files by name.
+    """
+    import jinja2
+
+    from cfteach.render import belief as bel
+    from cfteach.render import save_demo
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    checked = {name: _as_domain_results(name, value) for name, value in results.items()}
+    if not checked:
+        raise ValueError("results is empty: nothing to report")
+    layout_of = layouts or default_layouts()
+    started = time.perf_counter()
+
+    n_pictures = sum(
+        sum(len(c["demos"]) + 1 for c in r.curricula.values())
+        + (1 if r.curricula else 0)
+        + (sum(len(v) + 1 for v in r.tests["tests"].values()) if r.tests else 0)
+        for r in checked.values()
+    )
+    bar = _progress(n_pictures, progress, "report pictures")
+    domains_view = []
+    summary_rows = []
+    for name, res in checked.items():
+        img = out / name / "img"
+        img.mkdir(parents=True, exist_ok=True)
+        rel = f"{name}/img"
+        conds = [c for c in CONDITIONS if c in res.curricula] + [
+            c for c in res.curricula if c not in CONDITIONS
+        ]
+        columns = []
+        for cond in conds:
+            cur = res.curricula[cond]
+            demos_view = []
+            for k, demo in enumerate(cur["demos"], start=1):
+                file = f"{cond}-demo{k}.gif"
+                save_demo(layout_of(name, demo), demo["states"], img / file, cell_px=gif_cell_px)
+                bar.update()
+                demos_view.append(
+                    {
+                        "k": k,
+                        "src": f"{rel}/{file}",
+                        "env": _fmt_env(demo),
+                        "gain": demo.get("knowledge_gain"),
+                        "area": demo.get("belief_area_after"),
+                        "masked": demo.get("masked_feature"),
+                        "n_actions": len(demo.get("actions", [])),
+                        "reward": demo.get("reward"),
+                        "actions": " ".join(demo.get("actions", [])),
+                    }
+                )
+            sphere = f"{cond}-belief.png"
+            fig = bel.plot_belief_sphere(
+                cur["final_belief"]["constraints"],
+                w_true=cur["weights"],
+                feature_names=cur["feature_names"],
+                title=f"{cond}: final belief",
+                resolution=sphere_resolution,
+            )
+            bel.save_figure(fig, img / sphere)
+            bar.update()
+            area = cur["final_belief"].get("area")
+            columns.append(
+                {
+                    "condition": cond,
+                    "json": f"{name}/{cond}.json",
+                    "sphere": f"{rel}/{sphere}",
+                    "demos": demos_view,
+                    "final_area": area,
+                }
+            )
+            summary_rows.append(
+                {
+                    "domain": name,
+                    "condition": cond,
+                    "n_demos": len(cur["demos"]),
+                    "final_area": area,
+                    "total_gain": _product(d.get("knowledge_gain") for d in cur["demos"]),
+                    "profile": cur.get("profile"),
+                    "seed": cur.get("seed"),
+                }
+            )
+        areas_src = None
+        if res.curricula:
+            fig = bel.plot_belief_areas(res.curricula, title=f"{name}: belief area")
+            bel.save_figure(fig, img / "belief-areas.png")
+            bar.update()
+            areas_src = f"{rel}/belief-areas.png"
+
+        tests_view = None
+        if res.tests is not None:
+            tests_view = _tests_view(name, res.tests, img, rel, layout_of, test_cell_px, bar)
+            for level, info in tests_view["levels"].items():
+                if info["tests"]:
+                    fig = bel.plot_belief_sphere(
+                        res.tests["belief"]["constraints"],
+                        bec=info["tests"][0]["constraints"],
+                        w_true=res.tests["weights"],
+                        feature_names=res.tests["feature_names"],
+                        title=f"{level}: belief vs first test's BEC",
+                        resolution=sphere_resolution,
+                    )
+                    file = f"test-{level}-overlap.png"
+                    bel.save_figure(fig, img / file)
+                    info["overlap_picture"] = f"{rel}/{file}"
+                bar.update()
+        first = next(iter(res.curricula.values()), None) or res.tests or {}
+        domains_view.append(
+            {
+                "name": name,
+                "feature_names": first.get("feature_names", []),
+                "weights": first.get("weights", []),
+                "columns": columns,
+                "areas": areas_src,
+                "tests": tests_view,
+            }
+        )
+    bar.close()
+
+    from cfteach import __version__
+
+    env = jinja2.Environment(
+        loader=jinja2.PackageLoader("cfteach.report", "templates"),
+        autoescape=jinja2.select_autoescape(["html", "j2"]),
+        undefined=jinja2.StrictUndefined,
+    )
+    env.filters["num"] = _num
+    html = env.get_template("index.html.j2").render(
+        domains=domains_view,
+        summary=summary_rows,
+        test_summary=[
+            {"domain": d["name"], **d["tests"]} for d in domains_view if d["tests"] is not None
+        ],
+        meta=dict(meta or {}),
+        version=__version__,
+        picture_seconds=time.perf_counter() - started,
+        levels=LEVELS,
+    )
+    index = out / "index.html"
+    index.write_text(html, encoding="utf-8")
+    return index
+
+
+def _tests_view(
+    name: str,
+    tests: Mapping[str, Any],
+    img: Path,
+    rel: str,
+    layout_of: LayoutFn,
+    cell_px: int,
+    bar: Any,
+) -> dict[str, Any]:
+    from cfteach.render import save_demo
+
+    levels: dict[str, Any] = {}
+    for level in LEVELS:
+        items = []
+        for k, test in enumerate(tests["tests"].get(level, []), start=1):
+            file = f"test-{level}-{k}.png"
+            save_demo(layout_of(name, test), test["states"], img / file, cell_px=cell_px)
+            bar.update()
+            items.append(
+                {
+                    "k": k,
+                    "src": f"{rel}/{file}",
+                    "env": _fmt_env(test),
+                    "overlap": test.get("overlap"),
+                    "reward": test.get("optimal_reward", test.get("reward")),
+                    "n_actions": len(test.get("actions", [])),
+                    "n_optimal": len(test.get("all_optimal_actions", []) or []),
+                    "actions": " ".join(test.get("actions", [])),
+                    "constraints": test.get("constraints", []),
+                }
+            )
+        overlaps = [t["overlap"] for t in items if t["overlap"] is not None]
+        levels[level] = {
+            "tests": items,
+            "n": len(items),
+            "overlap_min": min(overlaps) if overlaps else None,
+            "overlap_max": max(overlaps) if overlaps else None,
+            "overlap_picture": None,
+        }
+    return {
+        "json": f"{name}/tests.json",
+        "levels": levels,
+        "centres": list(tests.get("cluster_centres", [])),
+        "belief_area": tests["belief"].get("area"),
+        "n_excluded": len(tests.get("excluded", [])),
+    }
+
+
+def _product(values: Iterable[Any]) -> float | None:
+    out = 1.0
+    seen = False
+    for v in values:
+        if v is None:
+            continue
+        out *= float(v)
+        seen = True
+    return out if seen else None
+
+
+def _num(value: Any, digits: int = 3) -> str:
+    """Numbers for people: `digits` significant digits, em dash for missing."""
+    if value is None:
+        return "—"
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return str(value)
+    if isinstance(value, int):
+        return str(value)
+    if value != value:  # nan
+        return "nan"
+    return f"{value:.{digits}g}"

@@ -1,0 +1,206 @@
+"""The HTML report built from hand-made JSON fixtures that follow docs/schemas.md."""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from cfteach.render import style as st
+from cfteach.report import build_report, load_results, write_results
+
+W_RAW = np.array([-0.175, -0.5125, -1.0])
+W = (W_RAW / np.linalg.norm(W_RAW)).tolist()
+FEATURES = ["skateboard_step", "path_step", "base_step"]
+
+
+def state(x: int, y: int, board=None, carrying=False) -> dict:
+    return {"agent": [x, y], "skateboard": board, "carrying": carrying}
+
+
+def demo(env_code, start_xy, moves, *, gain, area, masked=None) -> dict:
+    """A skateboard demonstration with no board, walked by hand (no path cells used)."""
+    step = {"up": (0, 1), "down": (0, -1), "left": (-1, 0), "right": (1, 0)}
+    x, y = start_xy
+    states = [state(x, y)]
+    for m in moves:
+        dx, dy = step[m]
+        x, y = x + dx, y + dy
+        states.append(state(x, y))
+    mu = [0, 0, len(moves)]
+    return {
+        "env_code": env_code,
+        "env_index": int("".join(map(str, env_code)), 2),
+        "start_state": states[0],
+        "actions": list(moves),
+        "states": states,
+        "feature_counts": mu,
+        "reward": float(np.dot(W, mu)),
+        "constraints": [[0, 0, -1], [1, 0, -1]],
+        "knowledge_gain": gain,
+        "belief_area_after": area,
+        "masked_feature": masked,
+    }
+
+
+def curriculum(condition: str, demos: list[dict]) -> dict:
+    return {
+        "schema": "cfteach.curriculum/1",
+        "domain": "skateboard",
+        "condition": condition,
+        "profile": "default",
+        "seed": 0,
+        "settings": {"human_models": 8, "max_demos": None, "proportion": None},
+        "feature_names": FEATURES,
+        "weights": W,
+        "prior": [[0, 0, -1]],
+        "demos": demos,
+        "final_belief": {"constraints": [[0, 0, -1], [-1, 0, 0], [0, -1, 0]], "area": math.pi / 2},
+    }
+
+
+def make_results() -> dict:
+    curricula = {}
+    for i, cond in enumerate(["baseline", "feature_only", "counterfactual_only", "proposed"]):
+        demos = [
+            demo([0, 0, 0], (4, 4), ["right", "right"], gain=1.5 + i, area=2.0),
+            demo(
+                [1, 0, 0],
+                (1, 2),
+                ["up", "up", "right"] + ["right"] * 4,
+                gain=1.2,
+                area=math.pi / 2,
+                masked="path_step" if "feature" in cond else None,
+            ),
+        ]
+        curricula[cond] = curriculum(cond, demos)
+    tests = {
+        "schema": "cfteach.tests/1",
+        "domain": "skateboard",
+        "profile": "default",
+        "seed": 0,
+        "settings": {"per_level": 1, "human_models": 8},
+        "feature_names": FEATURES,
+        "weights": W,
+        "belief": {"constraints": [[0, 0, -1], [-1, 0, 0], [0, -1, 0]], "area": math.pi / 2},
+        "excluded": [[0, state(4, 4)]],
+        "cluster_centres": [0.1, 0.3, 0.6, 0.9, 1.2],
+        "tests": {},
+    }
+    for k, level in enumerate(["low", "medium", "high"]):
+        t = demo([0, 1, 0], (5, 3 - k), ["up"] * (1 + k), gain=None, area=None)
+        for key in ("knowledge_gain", "belief_area_after", "masked_feature"):
+            del t[key]
+        t.update(
+            overlap=1.2 - 0.5 * k,
+            difficulty=level,
+            all_optimal_actions=[t["actions"]],
+            optimal_reward=t["reward"],
+        )
+        tests["tests"][level] = [t]
+    return {"skateboard": {"curricula": curricula, "tests": tests}}
+
+
+class _Collect(HTMLParser):
+    def __init__(self) -> None:
+        super().__init__()
+        self.imgs: list[str] = []
+        self.links: list[str] = []
+        self.columns: list[str] = []
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "img":
+            self.imgs.append(a["src"])
+        elif tag == "a" and "href" in a and not a["href"].startswith("#"):
+            self.links.append(a["href"])
+        if a.get("data-condition"):
+            self.columns.append(a["data-condition"])
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory) -> tuple[Path, Path]:
+    out = tmp_path_factory.mktemp("report")
+    results = make_results()
+    write_results(out, results)
+    index = build_report(out, results, meta={"profile": "default", "seed": 0}, progress=False)
+    return out, index
+
+
+def test_every_image_and_link_of_the_report_resolves(built):
+    out, index = built
+    parser = _Collect()
+    parser.feed(index.read_text(encoding="utf-8"))
+    assert parser.columns == ["baseline", "feature_only", "counterfactual_only", "proposed"]
+    # 4 conditions x (2 demos + 1 sphere) + area chart + 3 tests + 3 overlap spheres
+    assert len(parser.imgs) == 4 * 3 + 1 + 3 + 3
+    for src in parser.imgs + parser.links:
+        assert not re.match(r"^[a-z]+:", src), f"not a relative link: {src}"
+        path = out / src
+        assert path.is_file(), src
+        if path.suffix in {".png", ".gif"}:
+            with Image.open(path) as im:
+                im.verify()
+    assert (out / "skateboard" / "proposed.json").is_file()
+    assert (out / "skateboard" / "tests.json").is_file()
+
+
+def test_demo_gif_animates_the_walk_in_the_right_cells(built):
+    out, _ = built
+    cell = 36  # the report's default GIF cell size
+    with Image.open(out / "skateboard/img/proposed-demo1.gif") as im:
+        assert im.n_frames == 3  # start + 2 moves
+        for k, x in enumerate([4, 5, 6]):
+            im.seek(k)
+            rgb = np.asarray(im.convert("RGB")).astype(int)
+            px = rgb[int((4 - 4 + 0.6) * cell), int((x - 1 + 0.5) * cell)]
+            agent = [int(st.AGENT_COLOR[i : i + 2], 16) for i in (1, 3, 5)]
+            assert np.abs(px - agent).max() <= 8, (k, px)
+
+
+def test_report_shows_gains_overlaps_and_summary(built):
+    _, index = built
+    html = index.read_text(encoding="utf-8")
+    assert "gain <b>4.5</b>" in html  # proposed's first demo: 1.5 + 3
+    assert "overlap <b>0.2</b>" in html  # the high test: 1.2 - 1.0
+    summary = html.split('class="summary-curricula"')[1].split("</table>")[0]
+    rows = re.findall(
+        r"<tr><td class=\"l\">skateboard</td><td class=\"l\">(\w+)</td>"
+        r"<td>(\d+)</td>\s*<td>([\d.]+)</td><td>([\d.]+)</td>",
+        summary,
+    )
+    assert [r[0] for r in rows] == ["baseline", "feature_only", "counterfactual_only", "proposed"]
+    # total knowledge gain = product of the demos' gains (baseline: 1.5 * 1.2)
+    assert float(rows[0][3]) == pytest.approx(1.8)
+    assert float(rows[0][2]) == pytest.approx(math.pi / 2, rel=1e-3)
+
+
+def test_results_round_trip_through_files(built):
+    out, _ = built
+    back = load_results(out)
+    assert back["skateboard"].curricula == make_results()["skateboard"]["curricula"]
+    assert back["skateboard"].tests["tests"]["high"][0]["overlap"] == pytest.approx(0.2)
+
+
+def test_bad_results_are_named(tmp_path):
+    results = make_results()
+    bad = copy.deepcopy(results)
+    bad["skateboard"]["curricula"]["proposed"]["schema"] = "nope"
+    with pytest.raises(ValueError, match=r"curricula\['proposed'\]: not a cfteach.curriculum/1"):
+        build_report(tmp_path, bad, progress=False)
+    bad = copy.deepcopy(results)
+    del bad["skateboard"]["tests"]["belief"]
+    with pytest.raises(ValueError, match=r"tests: missing key 'belief'"):
+        build_report(tmp_path, bad, progress=False)
+    bad = copy.deepcopy(results)
+    bad["skateboard"]["curricula"]["baseline"]["domain"] = "tiles"
+    with pytest.raises(ValueError, match="its domain is 'tiles', not 'skateboard'"):
+        build_report(tmp_path, bad, progress=False)
+    with pytest.raises(ValueError, match="nothing to report"):
+        build_report(tmp_path, {}, progress=False)
