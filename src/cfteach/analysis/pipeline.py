@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,8 +66,12 @@ def compute_results(
             "the between-subjects analyses need all four"
         )
     frames = build_frames(kept)
+    with warnings.catch_warnings():
+        # pingouin 0.7 calls pandas APIs that pandas 3.1 deprecates; not ours to fix
+        warnings.filterwarnings("ignore", module=r"pingouin(\..*)?$")
+        results = _all_statistics(frames, cfg, stats)
     by_cond = kept.participants["condition"].value_counts()
-    results: dict[str, Any] = {
+    summary: dict[str, Any] = {
         "meta": {
             "export_dir": str(export_dir),
             "cfteach_version": __version__,
@@ -82,6 +87,13 @@ def compute_results(
             "n_test_responses": int(len(kept.tests)),
         },
         "exclusions": excluded.to_dict(orient="records"),
+        **results,
+    }
+    return _jsonable(summary), frames
+
+
+def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str, Any]:
+    return {
         "icc": stats.icc_domains(frames),
         "h1": {
             "rm_anova": stats.rm_anova_difficulty(frames),
@@ -92,7 +104,6 @@ def compute_results(
         "likert": stats.likert_tests(frames, cfg.padjust),
         "exploratory": stats.exploratory(frames),
     }
-    return _jsonable(results), frames
 
 
 def analyze(

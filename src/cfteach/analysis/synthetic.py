@@ -100,6 +100,9 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
     cfg = config or SyntheticConfig()
     rng = np.random.default_rng(cfg.seed)
     items = _items(np.random.default_rng([cfg.seed, 1]))
+    by_set: dict[tuple[str, int], list] = {}
+    for it in items.itertuples(index=False):
+        by_set.setdefault((it.domain, it.test_set), []).append(it)
     n = cfg.n_participants
     n_screened = round(0.05 * n) if cfg.n_screened_out is None else cfg.n_screened_out
     n_abandoned = round(0.03 * n) if cfg.n_abandoned is None else cfg.n_abandoned
@@ -149,7 +152,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
         )
         if kind == "screened_out":
             continue
-        ability = rng.normal(0, cfg.subject_sd) - (4.0 if k in outliers else 0.0)
+        ability = rng.normal(0, cfg.subject_sd) - (6.0 if k in outliers else 0.0)
         n_domains = int(rng.integers(1, 3)) if kind == "abandoned" else 3
         for pos, dom in enumerate(dom_order[:n_domains], start=1):
             for j in range(DEMOS_PER_DOMAIN[dom]):
@@ -188,31 +191,36 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                     "value": int(np.clip(round(rng.normal(base_eff, 0.9)), 1, 5)),
                 }
             )
-            dom_items = items[(items.domain == dom) & (items.test_set == test_set)]
+            dom_items = by_set[(dom, test_set)]
             n_tests = int(rng.integers(1, 6)) if (kind == "abandoned" and pos == n_domains) else 6
-            shown = dom_items.iloc[rng.permutation(len(dom_items))[:n_tests]]
-            for trial, it in enumerate(shown.itertuples(index=False), start=1):
-                d_idx = DIFFICULTIES.index(it.difficulty)
-                logit = (
-                    CENTRE
-                    + cfg.difficulty_effect * DEV[d_idx]
-                    + ability
-                    + DOMAIN_SHIFT[dom]
-                    + cfg.interaction * cf * SIGN[d_idx]
-                    + cfg.feature_effect * fs
-                )
-                correct = bool(rng.random() < 1 / (1 + np.exp(-logit)))
-                if correct:
+            shown = [dom_items[i] for i in rng.permutation(len(dom_items))[:n_tests]]
+            m = len(shown)
+            d_idx = np.array([DIFFICULTIES.index(it.difficulty) for it in shown], dtype=int)
+            logit = (
+                CENTRE
+                + cfg.difficulty_effect * DEV[d_idx]
+                + ability
+                + DOMAIN_SHIFT[dom]
+                + cfg.interaction * cf * SIGN[d_idx]
+                + cfg.feature_effect * fs
+            )
+            correct = rng.random(m) < 1 / (1 + np.exp(-logit))
+            gaps = rng.gamma(2.0, 0.12, m) * (8.0 if k in outliers else 1.0) + 0.02
+            extra = rng.integers(0, 5, m)
+            secs_per_step = np.exp(
+                rng.normal(np.log(2.49) + np.log(cfg.time_cf_ratio) * cf, 0.35, m)
+            )
+            conf = np.clip(
+                np.round(3.4 - 0.3 * d_idx + 0.4 * correct + rng.normal(0, 1.1, m)), 1, 5
+            )
+            for trial, it in enumerate(shown, start=1):
+                i = trial - 1
+                if correct[i]:
                     reward, actions = it.optimal_reward, it.optimal_actions
                 else:
-                    gap = rng.gamma(2.0, 0.12) * (8.0 if k in outliers else 1.0) + 0.02
-                    reward = round(it.optimal_reward - gap, 3)
-                    n_act = it.optimal_length + int(rng.integers(0, 5))
+                    reward = round(it.optimal_reward - float(gaps[i]), 3)
+                    n_act = it.optimal_length + int(extra[i])
                     actions = " ".join(rng.choice(ACTION_NAMES, n_act))
-                secs_per_step = np.exp(
-                    rng.normal(np.log(2.49) + np.log(cfg.time_cf_ratio) * cf, 0.35)
-                )
-                conf = 3.4 - 0.3 * d_idx + 0.4 * correct + rng.normal(0, 1.1)
                 tests.append(
                     {
                         "participant_id": pid,
@@ -227,10 +235,10 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                         "n_actions": len(actions.split()),
                         "reward": reward,
                         "optimal_reward": it.optimal_reward,
-                        "optimal": int(correct),
+                        "optimal": int(correct[i]),
                         "optimal_length": it.optimal_length,
-                        "time_ms": int(secs_per_step * it.optimal_length * 1000),
-                        "confidence": int(np.clip(round(conf), 1, 5)),
+                        "time_ms": int(secs_per_step[i] * it.optimal_length * 1000),
+                        "confidence": int(conf[i]),
                     }
                 )
     return StudyExport(
