@@ -129,7 +129,9 @@ def built(tmp_path_factory) -> tuple[Path, Path]:
     out = tmp_path_factory.mktemp("report")
     results = make_results()
     write_results(out, results)
-    index = build_report(out, results, meta={"profile": "default", "seed": 0}, progress=False)
+    index = build_report(
+        out, results, meta={"profile": "default", "seed": 0}, sphere_resolution=24, progress=False
+    )
     return out, index
 
 
