@@ -1,7 +1,81 @@
-"""Commands of this family are added as their issues land."""
+"""`cfteach domains`: list the built-in domains, or check and summarise a domain file.
+
+Heavy imports happen inside the command so `cfteach --help` stays fast.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any
 
 import typer
 
 
+def _summary(dom: Any) -> dict[str, Any]:
+    insts = dom.instances()
+    return {
+        "name": dom.name,
+        "title": dom.title,
+        "reference_name": dom.reference_name,
+        "source": dom.source,
+        "width": dom.width,
+        "height": dom.height,
+        "actions": list(dom.actions),
+        "feature_names": list(dom.feature_names),
+        "feature_labels": list(dom.feature_labels),
+        "weights_raw": [float(x) for x in dom.weights_raw],
+        "weights": [float(x) for x in dom.weights],
+        "prior": dom.prior.tolist(),
+        "posterior": dom.posterior.tolist(),
+        "n_bits": dom.n_bits,
+        "instances": len(insts),
+        "demonstrations": sum(len(i.states()) for i in insts),
+    }
+
+
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the `cfteach` app."""
+    """Add `cfteach domains` to the app."""
+
+    @app.command("domains")
+    def domains_cmd(
+        paths: Annotated[
+            list[str] | None,
+            typer.Argument(help="Domain names or TOML files (default: the built-in domains)."),
+        ] = None,
+        as_json: Annotated[
+            bool, typer.Option("--json", help="Print a machine-readable JSON list.")
+        ] = False,
+    ) -> None:
+        """List domains: features, weights, number of instances and of demonstrations."""
+        from cfteach import domains
+
+        names = paths or domains.builtin_names()
+        rows = []
+        for name in names:
+            try:
+                rows.append(_summary(domains.load(name)))
+            except ValueError as exc:  # DomainFileError is a ValueError
+                typer.echo(f"Error: {exc}", err=True)
+                raise typer.Exit(2) from None
+        if as_json:
+            typer.echo(json.dumps(rows, indent=2))
+            return
+        header = ("domain", "features (raw weight)", "w* (unit norm)", "instances", "demos")
+        table = [header] + [
+            (
+                r["name"],
+                ", ".join(f"{f} {w:g}" for f, w in zip(r["feature_names"], r["weights_raw"],
+                                                       strict=True)),
+                "[" + ", ".join(f"{w:.3f}" for w in r["weights"]) + "]",
+                str(r["instances"]),
+                str(r["demonstrations"]),
+            )
+            for r in rows
+        ]
+        widths = [max(len(row[i]) for row in table) for i in range(len(header))]
+        for k, row in enumerate(table):
+            cells = [c.ljust(w) if i < 3 else c.rjust(w)
+                     for i, (c, w) in enumerate(zip(row, widths, strict=True))]
+            typer.echo("  ".join(cells).rstrip())
+            if k == 0:
+                typer.echo("  ".join("-" * w for w in widths))
