@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from cfteach.analysis import ExportError, SyntheticConfig, generate, load_export, write_export
-from cfteach.analysis.io import SCHEMA
+from cfteach.analysis.io import CONDITIONS, SCHEMA
 
 
 @pytest.fixture(scope="module")
@@ -110,4 +110,23 @@ def test_empty_file(export_dir: Path, tmp_path: Path) -> None:
     d = _copy(export_dir, tmp_path / "e")
     (d / "demo_views.csv").write_text("", encoding="utf-8")
     with pytest.raises(ExportError, match="demo_views.csv is empty"):
+        load_export(d)
+
+
+def test_scaffolding_flags_must_match_condition(export_dir: Path, tmp_path: Path) -> None:
+    d = _copy(export_dir, tmp_path / "e")
+    df = pd.read_csv(d / "participants.csv", dtype=str, keep_default_na=False)
+    i = df.index[df["condition"] == "baseline"][0]
+    df.loc[i, "counterfactual"] = "1"
+    df.to_csv(d / "participants.csv", index=False)
+    with pytest.raises(ExportError, match="participants.csv: column 'counterfactual' is 1"):
+        load_export(d)
+
+
+def test_condition_must_agree_across_files(export_dir: Path, tmp_path: Path) -> None:
+    d = _copy(export_dir, tmp_path / "e")
+    df = pd.read_csv(d / "likert.csv", dtype=str, keep_default_na=False)
+    df.loc[0, "condition"] = next(c for c in CONDITIONS if c != df.loc[0, "condition"])
+    df.to_csv(d / "likert.csv", index=False)
+    with pytest.raises(ExportError, match="likert.csv: column 'condition' is"):
         load_export(d)

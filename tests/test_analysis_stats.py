@@ -242,3 +242,48 @@ def test_mean_ci_matches_scipy_t_interval() -> None:
 def test_unknown_factor() -> None:
     with pytest.raises(ValueError, match="factor must be one of"):
         S.mixed_anova(SimpleNamespace(cells=None), "domain")
+
+
+def test_old_pingouin_column_names_are_accepted(frames, monkeypatch) -> None:
+    """pingouin < 0.6 spelled 'p-unc', 'p-GG-corr', ... and < 0.7 labelled ICC3k."""
+    import pingouin as pg
+
+    new = S.rm_anova_difficulty(frames)
+    real_rm, real_icc = pg.rm_anova, pg.intraclass_corr
+    renames = {
+        "p_unc": "p-unc",
+        "p_GG_corr": "p-GG-corr",
+        "W_spher": "W-spher",
+        "p_spher": "p-spher",
+    }
+    monkeypatch.setattr(pg, "rm_anova", lambda **kw: real_rm(**kw).rename(columns=renames))
+    old = S.rm_anova_difficulty(frames)
+    assert old["p"] == new["p"] and old["p_gg"] == new["p_gg"]
+    assert old["mauchly_W"] == new["mauchly_W"]
+
+    def old_icc(**kw):
+        res = real_icc(**kw).rename(columns={"CI95": "CI95%"})
+        res["Type"] = ["ICC1", "ICC2", "ICC3", "ICC1k", "ICC2k", "ICC3k"]
+        return res
+
+    icc_new = S.icc_domains(frames)
+    monkeypatch.setattr(pg, "intraclass_corr", old_icc)
+    icc_old = S.icc_domains(frames)
+    assert icc_old["icc"] == icc_new["icc"] and icc_old["ci95"] == icc_new["ci95"]
+    monkeypatch.setattr(
+        pg,
+        "mwu",
+        lambda x, y, **kw: pd.DataFrame(
+            {"U-val": [1.0], "p-val": [0.5], "RBC": [0.1], "CLES": [0.5]}, index=["MWU"]
+        ),
+    )
+    lk = S.likert_tests(frames)
+    assert lk["mental_effort"]["counterfactual"]["U"] == 1.0
+    assert lk["mental_effort"]["counterfactual"]["p"] == 0.5
+
+
+def test_posthoc_without_authors_variant_and_without_correction(frames) -> None:
+    res = S.posthoc_difficulty(frames, padjust="none", authors_tukey=False)
+    assert "authors_tukey" not in res
+    for r in res["paired"]["rows"]:
+        assert r["p_corr"] == pytest.approx(r["p_unc"])

@@ -183,6 +183,15 @@ def load_export(export_dir: str | Path) -> StudyExport:
             "participants.csv: column 'participant_id' repeats "
             f"{participants['participant_id'][dup].iloc[0]!r}"
         )
+    for col, members in (("counterfactual", CF_CONDITIONS), ("feature_scaffolding", FS_CONDITIONS)):
+        implied = participants["condition"].isin(members).astype(int)
+        bad = participants[participants[col].astype(int) != implied]
+        if len(bad):
+            raise ExportError(
+                f"participants.csv: column '{col}' is {int(bad[col].iloc[0])} for "
+                f"participant {bad['participant_id'].iloc[0]!r} in condition "
+                f"{bad['condition'].iloc[0]!r}"
+            )
     known = set(participants["participant_id"])
     for fname, df in (
         ("test_responses.csv", tests),
@@ -194,6 +203,14 @@ def load_export(export_dir: str | Path) -> StudyExport:
             raise ExportError(
                 f"{fname}: column 'participant_id' has ids not in participants.csv, "
                 f"e.g. {sorted(unknown)[0]!r}"
+            )
+        cond = df["participant_id"].map(participants.set_index("participant_id")["condition"])
+        wrong = df[cond != df["condition"]]
+        if len(wrong):
+            raise ExportError(
+                f"{fname}: column 'condition' is {wrong['condition'].iloc[0]!r} for participant "
+                f"{wrong['participant_id'].iloc[0]!r}, but participants.csv says "
+                f"{cond[wrong.index[0]]!r}"
             )
     return StudyExport(participants, tests, likert, demos)
 

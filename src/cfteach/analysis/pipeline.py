@@ -24,6 +24,7 @@ class AnalysisConfig:
 
     exclusions: ExclusionConfig = field(default_factory=ExclusionConfig)
     padjust: str = "holm"  # correction of the within-subjects post hocs and pairwise MWUs
+    authors_tukey: bool = True  # also report the authors' between-groups Tukey for H1
     figures: bool = True
 
     def __post_init__(self) -> None:
@@ -78,7 +79,11 @@ def compute_results(
             "pingouin_version": pingouin.__version__,
             "scipy_version": scipy.__version__,
         },
-        "config": {"exclusions": asdict(cfg.exclusions), "padjust": cfg.padjust},
+        "config": {
+            "exclusions": asdict(cfg.exclusions),
+            "padjust": cfg.padjust,
+            "authors_tukey": cfg.authors_tukey,
+        },
         "participants": {
             "n_sessions": int(len(export.participants)),
             "n_excluded": int(len(excluded)),
@@ -97,7 +102,7 @@ def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str
         "icc": stats.icc_domains(frames),
         "h1": {
             "rm_anova": stats.rm_anova_difficulty(frames),
-            "posthoc": stats.posthoc_difficulty(frames, cfg.padjust),
+            "posthoc": stats.posthoc_difficulty(frames, cfg.padjust, cfg.authors_tukey),
             "spearman": stats.spearman_confidence(frames),
         },
         "mixed": {f: stats.mixed_anova(frames, f) for f in stats.BETWEEN_FACTORS},

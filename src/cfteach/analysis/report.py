@@ -303,26 +303,27 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
             for r in ph["rows"]
         ],
     )
-    at = h1["posthoc"]["authors_tukey"]
-    doc.p(
-        "For comparison, the **authors' variant**: Tukey HSD treating the "
-        f"{at['n_observations']} participant × difficulty means as independent groups "
-        "(it ignores the pairing, so its p values are not valid for a within factor)."
-    )
-    doc.table(
-        ["A", "B", "M A", "M B", "T", "p (Tukey)"],
-        [
+    at = h1["posthoc"].get("authors_tukey")
+    if at:
+        doc.p(
+            "For comparison, the **authors' variant**: Tukey HSD treating the "
+            f"{at['n_observations']} participant × difficulty means as independent groups "
+            "(it ignores the pairing, so its p values are not valid for a within factor)."
+        )
+        doc.table(
+            ["A", "B", "M A", "M B", "T", "p (Tukey)"],
             [
-                r["A"],
-                r["B"],
-                fmt_num(r["mean_A"]),
-                fmt_num(r["mean_B"]),
-                fmt_num(r["T"]),
-                fmt_p(r["p_tukey"]),
-            ]
-            for r in at["rows"]
-        ],
-    )
+                [
+                    r["A"],
+                    r["B"],
+                    fmt_num(r["mean_A"]),
+                    fmt_num(r["mean_B"]),
+                    fmt_num(r["T"]),
+                    fmt_p(r["p_tukey"]),
+                ]
+                for r in at["rows"]
+            ],
+        )
     sp = h1["spearman"]
     doc.p(
         "Spearman's rank correlation of confidence (median per participant × difficulty) "

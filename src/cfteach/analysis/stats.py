@@ -150,7 +150,9 @@ def rm_anova_difficulty(frames: Frames) -> dict[str, Any]:
     }
 
 
-def posthoc_difficulty(frames: Frames, padjust: str = "holm") -> dict[str, Any]:
+def posthoc_difficulty(
+    frames: Frames, padjust: str = "holm", authors_tukey: bool = True
+) -> dict[str, Any]:
     """H1 post hocs: paired t-tests (correct for a within factor) and the authors' Tukey.
 
     The authors ran a between-groups Tukey HSD on the 3N participant x difficulty means,
@@ -183,6 +185,16 @@ def posthoc_difficulty(frames: Frames, padjust: str = "holm") -> dict[str, Any]:
                 "hedges": _num(r["hedges"]),
             }
         )
+    out: dict[str, Any] = {
+        "paired": {
+            "test": "paired t-tests (pingouin.pairwise_tests, within-subjects)",
+            "padjust": padjust,
+            "n_participants": int(cells["participant_id"].nunique()),
+            "rows": rows,
+        }
+    }
+    if not authors_tukey:
+        return out
     tukey = pg.pairwise_tukey(data=cells, dv="optimal", between="difficulty")
     trows = [
         {
@@ -196,20 +208,13 @@ def posthoc_difficulty(frames: Frames, padjust: str = "holm") -> dict[str, Any]:
         }
         for _, r in tukey.iterrows()
     ]
-    return {
-        "paired": {
-            "test": "paired t-tests (pingouin.pairwise_tests, within-subjects)",
-            "padjust": padjust,
-            "n_participants": int(cells["participant_id"].nunique()),
-            "rows": rows,
-        },
-        "authors_tukey": {
-            "test": "authors' variant: between-groups Tukey HSD on participant x difficulty "
-            "means (ignores pairing)",
-            "n_observations": int(len(cells)),
-            "rows": trows,
-        },
+    out["authors_tukey"] = {
+        "test": "authors' variant: between-groups Tukey HSD on participant x difficulty "
+        "means (ignores pairing)",
+        "n_observations": int(len(cells)),
+        "rows": trows,
     }
+    return out
 
 
 def spearman_confidence(frames: Frames) -> dict[str, Any]:

@@ -44,6 +44,14 @@ def analyze(
         ),
     ] = "holm",
     no_figures: Annotated[bool, typer.Option("--no-figures", help="Skip the plots.")] = False,
+    authors_tukey: Annotated[
+        bool,
+        typer.Option(
+            "--authors-tukey/--no-authors-tukey",
+            help="Also report the authors' between-groups Tukey for H1 (labelled; it ignores "
+            "the pairing).",
+        ),
+    ] = True,
     aggregate_sd: Annotated[
         float,
         typer.Option(
@@ -164,7 +172,12 @@ def analyze(
             item_counts_among_nonzero=not counts_among_all,
             manual=_read_manual(exclude_file) if exclude_file else {},
         )
-        cfg = AnalysisConfig(exclusions=excl, padjust=padjust, figures=not no_figures)
+        cfg = AnalysisConfig(
+            exclusions=excl,
+            padjust=padjust,
+            figures=not no_figures,
+            authors_tukey=authors_tukey,
+        )
         results = run(export_dir, out, cfg)
     except (ExportError, ValueError) as exc:
         typer.echo(f"error: {exc}", err=True)
