@@ -1,0 +1,327 @@
+"""Simulated learners: how a person might turn demonstrations into a belief over `w*`,
+and how they would then play an unseen test.
+
+Three models, each a `LearnerModel` (docs/simulate.md explains the reasoning):
+
+* ``counterfactual`` — the paper's model of the human (§IV, Alg. 1). The belief is a region
+  of the weight sphere, starting at the domain's prior. On each demonstration the learner
+  samples `m` weight vectors from its *own* current belief, works out what it would have
+  done itself under each (its counterfactual: of its tied-optimal plans, the one closest to
+  the demonstration — the reference's "benefit of the doubt"), from every state along the
+  demonstration as the reference does, and cuts its belief with `mu(demo) - mu(own plan)`.
+* ``irl`` — standard IRL (Eq. 2): one-action deviations followed by the robot's optimal
+  policy, from every state along the demonstration. Deterministic: all such learners hold
+  the same belief and differ only in how they answer tests.
+* ``noisy`` — a bounded version of ``counterfactual``: only a few counterfactuals per
+  demonstration (`human_models`, default 2, from the demonstration's start only — the
+  paper's Eq. 4) and Boltzmann-rational test answers with a temperature.
+
+Answering a test: the learner samples one weight vector from its belief for the test's
+environment, plans with it (exact value iteration, `cfteach.mdp`) and plays from the test's
+start state — greedily, or Boltzmann-rationally for the noisy model. Answers are scored
+exactly as the study scores people (`cfteach.simulate.scoring`).
+
+Weights that make a reward-gaining loop in an environment (e.g. a positive path weight in
+skateboard) have no finite plan. The reference's teacher silently drops such human models;
+by default (`resample_unbounded=True`) a learner instead imagines only robots that finish
+their task — it has only ever seen demonstrations that end — and redraws such a sample (up
+to `MAX_REDRAWS` times) both when forming counterfactuals and when answering tests. With
+`resample_unbounded=False` unbounded samples give no counterfactual (the reference's
+rule) and a test answered with one never finishes, so it is wrong.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from cfteach.simulate.planning import best_finishing_tied, boltzmann_rollouts, follow
+from cfteach.simulate.scoring import score_answers
+
+#: How often a learner redraws a weight sample that has no finite plan in an environment.
+MAX_REDRAWS = 20
+
+
+@dataclass(frozen=True)
+class LearnerModel:
+    """How a simulated learner learns and answers (see the module docstring)."""
+
+    name: str
+    constraints: str = "counterfactual"  # or "one_step" (standard IRL)
+    human_models: int = 8
+    all_suffixes: bool = True
+    temperature: float = 0.0
+    resample_unbounded: bool = True
+
+    def __post_init__(self) -> None:
+        if self.constraints not in ("counterfactual", "one_step"):
+            raise ValueError(f"constraints must be 'counterfactual' or 'one_step', "
+                             f"got {self.constraints!r}")
+        if self.human_models < 1:
+            raise ValueError(f"human_models must be at least 1, got {self.human_models}")
+        if self.temperature < 0:
+            raise ValueError(f"temperature must be >= 0, got {self.temperature}")
+
+
+LEARNER_MODELS: dict[str, LearnerModel] = {
+    "counterfactual": LearnerModel("counterfactual"),
+    "irl": LearnerModel("irl", constraints="one_step", human_models=1),
+    "noisy": LearnerModel("noisy", human_models=2, all_suffixes=False, temperature=0.02),
+}
+
+
+def learner_model(name: str | LearnerModel, **overrides: Any) -> LearnerModel:
+    """A built-in learner model by name, optionally with some fields changed."""
+    if isinstance(name, LearnerModel):
+        return replace(name, **overrides) if overrides else name
+    if name not in LEARNER_MODELS:
+        raise ValueError(f"unknown learner model {name!r}; choose one of "
+                         f"{', '.join(LEARNER_MODELS)}")
+    return replace(LEARNER_MODELS[name], **overrides) if overrides else LEARNER_MODELS[name]
+
+
+def _as_constraints(rows: np.ndarray) -> np.ndarray:
+    """Feature-count differences are integral: keep them integer (exact geometry)."""
+    r = np.round(rows)
+    return r.astype(np.int64) if np.allclose(rows, r, atol=1e-9) else rows
+
+
+@dataclass(frozen=True)
+class Replay:
+    """A demonstration or test replayed in the compiled instance."""
+
+    env: int
+    states: np.ndarray       # state indices visited, len(actions) + 1 (the last may be the sink)
+    actions: np.ndarray
+    mu_suffix: np.ndarray    # [T, F] feature counts from step t to the end
+    finished: bool
+
+
+class Learners:
+    """`n` simulated learners of one model, learning one domain side by side.
+
+    All planning is batched over the learners (one value iteration per demonstration for
+    everyone's sampled weights), so a block of learners costs little more than one.
+    """
+
+    def __init__(self, domain: Any, model: str | LearnerModel, n: int,
+                 rng: np.random.Generator | int | None = None) -> None:
+        from cfteach.mdp import compile_domain
+
+        if n < 1:
+            raise ValueError(f"need at least one learner, got n={n}")
+        self.domain = domain
+        self.model = learner_model(model)
+        self.n = int(n)
+        self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        self.batch = compile_domain(domain)
+        self.w_true = np.asarray(domain.weights, dtype=float)
+        prior = np.asarray(domain.prior)
+        prior = prior.reshape(-1, self.batch.F) if prior.size else np.zeros((0, self.batch.F))
+        self.beliefs: list[np.ndarray] = [_as_constraints(prior) for _ in range(self.n)]
+        self.ignored = np.zeros(self.n, dtype=np.int64)  # updates that would empty a belief
+        self._star: dict[int, np.ndarray] = {}
+
+    # -- helpers -----------------------------------------------------------------------
+    def _region(self, normals: np.ndarray):
+        from cfteach.geometry import Region
+
+        return Region(normals, dim=self.batch.F)
+
+    def _optimal_q(self, env: int) -> np.ndarray:
+        """Q under the true weights for one instance, cached: the robot's own planning."""
+        if env not in self._star:
+            from cfteach.mdp import value_iteration
+
+            vals = value_iteration(self.batch, self.w_true[None], env=[env])
+            if not vals.bounded[0, 0]:
+                raise ValueError(f"the true weights make instance {env} unbounded")
+            self._star[env] = vals.Q[0, 0]
+        return self._star[env]
+
+    def _plan_samples(self, env: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+        """Draw `m` weight vectors from every learner's belief and plan with them in one
+        instance: `Q[n*m, S, A]` (learner i owns rows i*m .. i*m+m-1) and `bounded[n*m]`.
+        Unbounded samples are redrawn when the model says so (module docstring)."""
+        from cfteach.mdp import value_iteration
+
+        regions = [self._region(b) for b in self.beliefs]
+        W = np.vstack([r.sample(m, self.rng) for r in regions])
+        vals = value_iteration(self.batch, W, env=[env])
+        q, bounded = vals.Q[0].copy(), vals.bounded[0].copy()
+        rounds = MAX_REDRAWS if self.model.resample_unbounded else 0
+        for _ in range(rounds):
+            bad = np.flatnonzero(~bounded)
+            if not bad.size:
+                break
+            owners = bad // m
+            Wb = np.vstack([regions[i].sample(1, self.rng) for i in owners])
+            vb = value_iteration(self.batch, Wb, env=[env])
+            q[bad], bounded[bad] = vb.Q[0], vb.bounded[0]
+        return q, bounded
+
+    def replay(self, item: dict[str, Any]) -> Replay:
+        """Replay a demonstration/test dict (docs/schemas.md) in the compiled instance."""
+        env = _env_of(self.domain, item)
+        inst = self.batch.instances[env]
+        try:
+            start = inst.state_from_json(item["start_state"])
+        except KeyError as err:
+            raise ValueError(f"demonstration lacks {err.args[0]!r}") from None
+        s = self.batch.index_of(env, start)
+        acts = [_action_index(self.batch.actions, a) for a in item.get("actions", [])]
+        nxt, feats = self.batch.next_state[env], self.batch.features[env]
+        states, phis = [s], []
+        for t, a in enumerate(acts):
+            if s == self.batch.sink:
+                raise ValueError(f"demonstration continues after the end (action {t})")
+            phis.append(feats[s, a])
+            s = int(nxt[s, a])
+            states.append(s)
+        phis_arr = np.asarray(phis, dtype=float).reshape(len(acts), self.batch.F)
+        mu_suffix = np.cumsum(phis_arr[::-1], axis=0)[::-1] if len(acts) else phis_arr
+        if "feature_counts" in item and len(acts):
+            if not np.allclose(mu_suffix[0], item["feature_counts"]):
+                raise ValueError(f"demonstration's feature_counts {item['feature_counts']} do "
+                                 f"not match its replay {mu_suffix[0].tolist()}")
+        return Replay(env, np.asarray(states), np.asarray(acts, dtype=np.intp), mu_suffix,
+                      states[-1] == self.batch.sink)
+
+    # -- learning ----------------------------------------------------------------------
+    def observe(self, demo: dict[str, Any]) -> np.ndarray:
+        """Update every learner's belief from one demonstration; returns the number of
+        new constraints each learner formed."""
+        rep = self.replay(demo)
+        if not rep.finished or len(rep.actions) == 0:
+            return np.zeros(self.n, dtype=np.int64)  # an unfinished demo proves nothing
+        if self.model.constraints == "one_step":
+            rows = self._one_step_constraints(rep)
+            per = [rows] * self.n
+        else:
+            per = self._counterfactual_constraints(rep)
+        added = np.zeros(self.n, dtype=np.int64)
+        for i, rows in enumerate(per):
+            rows = rows[np.any(rows != 0, axis=1)]
+            if not len(rows):
+                continue
+            added[i] = len(rows)
+            new = self._region(np.vstack([self.beliefs[i], rows]).astype(rows.dtype))
+            if new.is_empty():
+                self.ignored[i] += 1  # contradictory evidence: keep the old belief
+                continue
+            self.beliefs[i] = _as_constraints(np.asarray(new.reduced()))
+        return added
+
+    def _one_step_constraints(self, rep: Replay) -> np.ndarray:
+        q = self._optimal_q(rep.env)
+        policy = np.argmax(q, axis=-1)[None]
+        nxt, feats = self.batch.next_state[rep.env], self.batch.features[rep.env]
+        T, A = len(rep.actions), self.batch.A
+        starts = np.repeat(rep.states[:T], A)[None]
+        first = np.tile(np.arange(A), T)[None]
+        mu, fin, _ = follow(nxt, feats, policy, starts, first_action=first,
+                            max_steps=self.batch.S + 1)
+        mu, fin = mu[0].reshape(T, A, -1), fin[0].reshape(T, A)
+        keep = fin & (np.arange(A)[None] != rep.actions[:, None])
+        rows = (rep.mu_suffix[:, None] - mu)[keep]
+        return _as_constraints(rows)
+
+    def _counterfactual_constraints(self, rep: Replay) -> list[np.ndarray]:
+        from cfteach.mdp import tied_actions
+
+        m = self.model.human_models
+        q, bounded = self._plan_samples(rep.env, m)
+        tied = tied_actions(q)
+        T = len(rep.actions) if self.model.all_suffixes else 1
+        starts = rep.states[:T]
+        nxt, feats = self.batch.next_state[rep.env], self.batch.features[rep.env]
+        mu_h, found = best_finishing_tied(nxt, feats, tied, self.w_true, starts)
+        found &= bounded[:, None]
+        diffs = rep.mu_suffix[None, :T] - mu_h                 # [N*m, T, F]
+        out = []
+        for i in range(self.n):
+            sl = slice(i * m, (i + 1) * m)
+            out.append(_as_constraints(diffs[sl][found[sl]]))
+        return out
+
+    def teach(self, demos: Sequence[dict[str, Any]]) -> None:
+        """Show a whole curriculum, in order."""
+        for d in demos:
+            self.observe(d)
+
+    def contains(self, w: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+        """Whether each learner's belief holds `w` (up to `tol` on the boundary)."""
+        w = np.asarray(w, dtype=float)
+        return np.array([bool(np.all(np.asarray(b, float) @ w >= -tol)) if len(b) else True
+                         for b in self.beliefs])
+
+    def belief_areas(self) -> np.ndarray:
+        """Measure of each learner's belief on the sphere (estimated beyond 3 features)."""
+        return np.array([self._region(b).area() for b in self.beliefs])
+
+    # -- testing -----------------------------------------------------------------------
+    def answer(self, tests: Sequence[dict[str, Any]]) -> dict[str, np.ndarray]:
+        """Every learner plays every test. Returns `reward`, `finished`, `correct` (all
+        `[n, len(tests)]`) and `optimal_reward` `[len(tests)]`."""
+        from cfteach.mdp import greedy_actions
+
+        T = len(tests)
+        reward = np.zeros((self.n, T))
+        finished = np.zeros((self.n, T), dtype=bool)
+        optimal = np.zeros(T)
+        by_env: dict[int, list[int]] = {}
+        starts = np.zeros(T, dtype=np.intp)
+        for j, t in enumerate(tests):
+            env = _env_of(self.domain, t)
+            inst = self.batch.instances[env]
+            starts[j] = self.batch.index_of(env, inst.state_from_json(t["start_state"]))
+            by_env.setdefault(env, []).append(j)
+        for env, js in by_env.items():
+            q_star = self._optimal_q(env)
+            v_star = q_star.max(axis=-1)
+            for j in js:
+                opt = tests[j].get("optimal_reward")
+                optimal[j] = float(v_star[starts[j]]) if opt is None else float(opt)
+            q, bounded = self._plan_samples(env, 1)
+            st = np.broadcast_to(starts[js], (self.n, len(js)))
+            nxt, feats = self.batch.next_state[env], self.batch.features[env]
+            max_steps = 4 * int(self.batch.n_states[env]) + 4
+            if self.model.temperature > 0:
+                mu, fin, _ = boltzmann_rollouts(nxt, feats, q, st, self.model.temperature,
+                                                self.rng, max_steps=max_steps)
+            else:
+                mu, fin, _ = follow(nxt, feats, greedy_actions(q), st, max_steps=max_steps)
+            fin &= bounded[:, None]
+            reward[:, js] = mu @ self.w_true
+            finished[:, js] = fin
+        correct = score_answers(reward, finished, optimal[None, :])
+        return {"reward": reward, "finished": finished, "correct": correct,
+                "optimal_reward": optimal}
+
+
+def _env_of(domain: Any, item: dict[str, Any]) -> int:
+    """Instance index of a demonstration/test dict, checked against its env_code."""
+    n = len(domain.instances())
+    if "env_index" in item:
+        env = int(item["env_index"])
+    elif "env_code" in item:
+        env = int("".join(str(int(b)) for b in item["env_code"]) or "0", 2)
+    else:
+        raise ValueError("demonstration/test lacks both 'env_index' and 'env_code'")
+    if not 0 <= env < n:
+        raise ValueError(f"env_index {env} out of range for domain {domain.name!r} ({n} instances)")
+    if "env_code" in item and tuple(int(b) for b in item["env_code"]) != \
+            tuple(domain.instances()[env].env_code):
+        raise ValueError(f"env_code {item['env_code']} does not match env_index {env}")
+    return env
+
+
+def _action_index(actions: Sequence[str], name: str) -> int:
+    try:
+        return list(actions).index(name)
+    except ValueError:
+        raise ValueError(f"unknown action {name!r}; the domain's actions are "
+                         f"{list(actions)}") from None

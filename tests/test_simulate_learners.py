@@ -1,0 +1,147 @@
+"""Simulated learners: beliefs keep w*, teaching helps, constraints and answers are right."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cfteach.domains import load
+from cfteach.mdp import compile_domain, greedy_actions, value_iteration
+from cfteach.simulate.learners import LEARNER_MODELS, Learners, learner_model
+from simulate_fixtures import make_demo
+
+PICKS = {
+    "tiles": [(511, 0), (255, 0), (480, 3), (15, 0), (300, 10)],
+    "delivery": [(63, 0), (31, 5), (40, 20), (7, 50), (62, 3)],
+    "skateboard": [(7, 0), (5, 3), (3, 100), (7, 200), (1, 10)],
+}
+
+
+def _tests(dom, n: int, seed: int) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        e = int(rng.integers(len(dom.instances())))
+        out.append(make_demo(dom, e, int(rng.integers(len(dom.instances()[e].states())))))
+    return out
+
+
+@pytest.mark.parametrize("name", ["tiles", "delivery", "skateboard"])
+@pytest.mark.parametrize("model", ["counterfactual", "noisy", "irl"])
+def test_taught_beliefs_contain_w_star(name: str, model: str) -> None:
+    dom = load(name)
+    learners = Learners(dom, model, 6, rng=3)
+    learners.teach([make_demo(dom, e, s) for e, s in PICKS[name]])
+    assert learners.contains(dom.weights).all()
+    # ... and the demonstrations taught something: beliefs shrank below the prior's 2*pi
+    assert (learners.belief_areas() < 2 * np.pi - 1e-6).any()
+
+
+@pytest.mark.parametrize("name", ["tiles", "delivery"])
+def test_no_demonstrations_does_worse_than_a_curriculum(name: str) -> None:
+    dom = load(name)
+    tests = _tests(dom, 16, seed=5)
+    none = Learners(dom, "counterfactual", 24, rng=1).answer(tests)["correct"].mean()
+    taught = Learners(dom, "counterfactual", 24, rng=1)
+    taught.teach([make_demo(dom, e, s) for e, s in PICKS[name]])
+    assert taught.answer(tests)["correct"].mean() > none + 0.1
+
+
+def _independent_one_step(dom, demo: dict) -> set[tuple[int, ...]]:
+    """One-action deviations by stepping the Instance itself (no compiled arrays)."""
+    b = compile_domain(dom)
+    env = demo["env_index"]
+    inst = dom.instances()[env]
+    q = value_iteration(b, dom.weights[None], env=[env]).Q[0, 0]
+    pol = greedy_actions(q)
+
+    def run(state, first=None) -> np.ndarray:
+        mu = np.zeros(dom.n_features)
+        for t in range(500):
+            a = first if (t == 0 and first is not None) else int(pol[b.index_of(env, state)])
+            state, phi, term = inst.step(state, a)
+            mu += phi
+            if term:
+                return mu
+        raise AssertionError("the optimal policy does not finish")
+
+    state = inst.state_from_json(demo["start_state"])
+    out = set()
+    for name in demo["actions"]:
+        a = dom.actions.index(name)
+        opt = run(state)
+        for alt in range(len(dom.actions)):
+            if alt != a:
+                c = opt - run(state, alt)
+                if np.any(c):
+                    out.add(tuple(int(x) for x in c))
+        state = inst.step(state, a)[0]
+    return out
+
+
+@pytest.mark.parametrize("name", ["tiles", "delivery", "skateboard"])
+def test_irl_constraints_equal_an_independent_replay(name: str) -> None:
+    dom = load(name)
+    learners = Learners(dom, "irl", 1, rng=0)
+    for e, s in PICKS[name][:3]:
+        demo = make_demo(dom, e, s)
+        rows = learners._one_step_constraints(learners.replay(demo))
+        got = {tuple(int(x) for x in r) for r in rows if np.any(r)}
+        assert got == _independent_one_step(dom, demo)
+
+
+def _tight_cone(w: np.ndarray, width: float = 0.01) -> np.ndarray:
+    """Four float normals whose region is a tiny square cone around w."""
+    u = np.linalg.svd(w[None])[2][1:]  # orthonormal complement of w
+    rows = []
+    for v in u[:2]:
+        rows += [v + width * w, -v + width * w]
+    for v in u[2:]:  # pin the remaining directions too (n > 3)
+        rows += [v + width * w, -v + width * w]
+    return np.array(rows)
+
+
+@pytest.mark.parametrize("name", ["tiles", "delivery", "skateboard"])
+def test_a_learner_who_knows_w_star_answers_every_test_optimally(name: str) -> None:
+    dom = load(name)
+    tests = _tests(dom, 12, seed=11)
+    learners = Learners(dom, "counterfactual", 4, rng=0)
+    learners.beliefs = [_tight_cone(dom.weights)] * 4
+    got = learners.answer(tests)
+    np.testing.assert_allclose(got["optimal_reward"], [t["reward"] for t in tests])
+    assert got["finished"].all()
+    assert got["correct"].all()
+    # the same knowledge with very noisy hands does worse
+    hot = Learners(dom, learner_model("noisy", temperature=1.0), 4, rng=0)
+    hot.beliefs = [_tight_cone(dom.weights)] * 4
+    assert hot.answer(tests)["correct"].mean() < 0.9
+
+
+def test_unbounded_samples_are_redrawn_or_fail() -> None:
+    dom = load("tiles")
+    tests = _tests(dom, 12, seed=2)
+    strict = Learners(dom, learner_model("counterfactual", resample_unbounded=False), 16, rng=4)
+    fin_strict = strict.answer(tests)["finished"]
+    assert not fin_strict.all()  # prior samples with positive tile weights loop forever
+    lenient = Learners(dom, "counterfactual", 16, rng=4)
+    assert lenient.answer(tests)["finished"].all()
+
+
+def test_bad_input_is_named() -> None:
+    dom = load("tiles")
+    learners = Learners(dom, "counterfactual", 2, rng=0)
+    demo = make_demo(dom, 5, 0)
+    with pytest.raises(ValueError, match="unknown action 'jump'"):
+        learners.observe(dict(demo, actions=["jump"]))
+    with pytest.raises(ValueError, match="does not match env_index"):
+        learners.observe(dict(demo, env_code=[1] * 9))
+    with pytest.raises(ValueError, match="feature_counts"):
+        learners.observe(dict(demo, feature_counts=[9, 9, 9]))
+    with pytest.raises(ValueError, match="out of range"):
+        no_code = {k: v for k, v in demo.items() if k != "env_code"}
+        learners.observe(dict(no_code, env_index=10_000))
+    with pytest.raises(ValueError, match="unknown learner model 'genius'"):
+        learner_model("genius")
+    with pytest.raises(ValueError, match="at least one learner"):
+        Learners(dom, "irl", 0)
+    assert set(LEARNER_MODELS) == {"counterfactual", "irl", "noisy"}
