@@ -167,6 +167,8 @@ def test_generic_styles_for_user_domain_names():
     assert pixel(img, 1, (2, 1), 0.05, 0.05) == hex_rgb(ice.color)
     assert pixel(img, 1, (1, 1), 0.5, 0.5) == hex_rgb(st.object_style("key", "cargo").color)
     coin = st.object_style("coin", "consumable").color
+    assert coin != st.object_style("key", "cargo").color
+    assert st.object_style("coin", "consumable").char != st.object_style("key", "cargo").char
     assert pixel(img, 1, (3, 1), 0.5, 0.5) == hex_rgb(coin)
     key_char = st.object_style("key", "cargo").char
     coin_char = st.object_style("coin", "consumable").char

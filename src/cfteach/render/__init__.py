@@ -35,6 +35,7 @@ __all__ = [
     "Scene",
     "SceneObject",
     "demo_frames",
+    "demo_text",
     "layout_from_instance",
     "legend",
     "save",
@@ -119,3 +120,9 @@ def save_demo(
     if path.suffix.lower() == ".gif":
         return save_gif(frames, path, cell_px or 32, frame_ms=frame_ms)
     return _write(frames[-1], path, cell_px or 48)
+
+
+def demo_text(layout: Layout, states: Sequence[Mapping[str, Any]], *, color: bool = False) -> str:
+    """A demonstration in text: its last frame with the whole trail, then the legend."""
+    frames = demo_frames(layout, states)
+    return to_text(frames[-1], color=color) + "\n" + legend(layout)

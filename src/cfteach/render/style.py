@@ -96,7 +96,8 @@ PALETTE = (
     "#FFED6F",
 )
 _GENERIC_CELL_CHARS = "xyzuvwkqrt"
-_GENERIC_OBJECT_CHARS = "ojcegiln"
+_GENERIC_CARGO_CHARS = "ojqk"
+_GENERIC_CONSUMABLE_CHARS = "cegiln"
 
 
 def cell_style(name: str, position: int = 0) -> CellStyle:
@@ -114,7 +115,12 @@ def object_style(name: str, kind: str, position: int = 0) -> ObjectStyle:
     key = name if name in OBJECT_STYLES else OBJECT_ALIASES.get(name.lower())
     if key is not None:
         return OBJECT_STYLES[key]
-    color = PALETTE[(position + 5) % len(PALETTE)]
-    char = _GENERIC_OBJECT_CHARS[position % len(_GENERIC_OBJECT_CHARS)]
-    shape: ObjectShape = "circle" if kind == "cargo" else "hexagon"
+    if kind == "cargo":
+        color = PALETTE[(position + 5) % len(PALETTE)]
+        char = _GENERIC_CARGO_CHARS[position % len(_GENERIC_CARGO_CHARS)]
+        shape: ObjectShape = "circle"
+    else:
+        color = PALETTE[(position + 7) % len(PALETTE)]
+        char = _GENERIC_CONSUMABLE_CHARS[position % len(_GENERIC_CONSUMABLE_CHARS)]
+        shape = "hexagon"
     return ObjectStyle(shape, color, char, name)
