@@ -139,3 +139,50 @@ def test_bad_arguments_get_clear_errors():
     env.reset()
     with pytest.raises(ValueError, match="not in Discrete"):
         env.step(6)
+
+
+USER_DOMAIN = {
+    "domain": {
+        "name": "keys",
+        "title": "Keys",
+        "description": "a user domain",
+        "width": 4,
+        "height": 2,
+        "discount": 1.0,
+        "walls": [[2, 2]],
+    },
+    "cells": {"lava": [[3, 1]]},
+    "agent": {"start": [1, 1]},
+    "cargo": {"name": "key", "start": [1, 2]},
+    "consumables": [{"name": "coin", "cell": [4, 2]}],
+    "goal": {"agent_at": [4, 1]},
+    "variants": [{"add_cells": {"lava": [[3, 2]]}}, {"switch_on": ["coin"]}],
+    "features": [
+        {"name": "burn", "label": "Lava", "weight": -2.0, "when": {"leaves_cells": "lava"}},
+        {"name": "coin", "label": "Coin", "weight": 1.0, "when": {"consumes": "coin"}},
+        {"name": "step", "label": "Step", "weight": -1.0},
+    ],
+    "beliefs": {"prior": [[0, 0, -1]], "posterior": [[-1, 0, 0], [0, 1, 0], [0, 0, -1]]},
+}
+
+
+def test_user_domains_get_environments_and_generic_pictures():
+    from cfteach import domains
+
+    dom = domains.from_dict(USER_DOMAIN, source="test-keys")
+    env = gymnasium.make(cgym.ENV_ID, domain=dom, env_code="11", render_mode="ansi")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped)
+    env = cgym.make(dom, "11", render_mode="ansi")
+    env.reset()
+    rows = env.render().strip().splitlines()[1:-1]
+    lava = st.cell_style("lava", 0).char
+    key = st.object_style("key", "cargo").char
+    coin = st.object_style("coin", "consumable").char
+    assert rows == [f"|{key}#{lava}{coin}|", f"|@ {lava}G|"]
+    env = cgym.make(dom, "11", render_mode="rgb_array", cell_px=20)
+    env.reset()
+    img = env.render()
+    lava_rgb = [int(st.cell_style("lava", 0).color[i : i + 2], 16) for i in (1, 3, 5)]
+    assert img[20 + 2, 40 + 2].tolist() == lava_rgb  # cell (3, 1), near its top-left corner
