@@ -50,9 +50,9 @@ def run_participant(client: Any, params: dict, *, study: dict | None = None,
         if kind == "consent":
             out = send(i, "consent", {"adult": True, "read": True, "agree": True})
         elif kind == "practice":
-            moves = ["up"] if fail_practice else best_path(s["game"], s["weights"])
+            moves = best_path(s["game"], s["weights"])
             if fail_practice:
-                moves = shortest_path(s["game"])
+                moves = _detour(s["game"]) + moves
             out = send(i, "practice_attempt", {"actions": moves, "time_ms": 1000})
         elif kind == "demos":
             for k in range(len(s["demos"])):
@@ -84,6 +84,16 @@ def run_participant(client: Any, params: dict, *, study: dict | None = None,
         advanced += 1
     answers["state"] = st
     return answers
+
+
+def _detour(game: dict) -> list[str]:
+    """Two moves that leave the start and come back: a wasted 10% of practice energy."""
+    acts = game["actions"]
+    for a, b in (("up", "down"), ("down", "up"), ("left", "right"), ("right", "left")):
+        j = game["next"][0][acts.index(a)]
+        if j != 0 and not game["terminal"][j] and game["next"][j][acts.index(b)] == 0:
+            return [a, b]
+    raise BotError("no detour possible from the practice start")
 
 
 def _find_test(study: dict, s: dict) -> dict:

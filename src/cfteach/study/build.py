@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .games import build_game, is_optimal, optimal_value, public_game, replay
+from .games import best_path, build_game, is_optimal, optimal_value, public_game, replay
 from .layout import instance_layout
 from .practice import (
     ACTIONS,
@@ -191,30 +191,8 @@ class ToyDomain:
         return list(self._instances)
 
 
-def _optimal_path(inst: CargoGrid, start: tuple, weights) -> list[str]:
-    """Brute-force best action list by value iteration over the game table."""
-    import numpy as np
-
-    g = build_game(inst, start, ACTIONS)
-    w = np.asarray(weights)
-    n = len(g["states"])
-    v = np.where(g["terminal"], 0.0, -np.inf)
-    for _ in range(1000):
-        old = v.copy()
-        for i in range(n):
-            if not g["terminal"][i]:
-                v[i] = max(float(w @ np.asarray(f)) + v[j]
-                           for j, f in zip(g["next"][i], g["phi"][i], strict=True))
-        if np.array_equal(old, v):
-            break
-    path, s = [], 0
-    while not g["terminal"][s]:
-        q = [float(w @ np.asarray(f)) + v[j] for j, f in zip(g["next"][s], g["phi"][s],
-                                                             strict=True)]
-        a = int(np.argmax(q))
-        path.append(ACTIONS[a])
-        s = g["next"][s][a]
-    return path
+def _optimal_path(inst: CargoGrid, start: tuple, weights) -> list[str]:  # noqa: ANN001
+    return best_path(build_game(inst, start, ACTIONS), list(weights))
 
 
 def _toy_demo(dom: ToyDomain, idx: int, start: tuple) -> dict:

@@ -115,27 +115,8 @@ def optimal_value(game: dict, weights: list[float], *, max_sweeps: int = 10_000)
 
     Used for the practice game, whose target energy is computed, not typed in.
     """
-    w = np.asarray(weights, dtype=float)
-    n = len(game["states"])
-    v = np.full(n, -np.inf)
-    for i in range(n):
-        if game["terminal"][i]:
-            v[i] = 0.0
-    for _ in range(max_sweeps):
-        changed = False
-        for i in range(n):
-            if game["terminal"][i]:
-                continue
-            best = max(
-                float(w @ np.asarray(f)) + v[j] for j, f in zip(game["next"][i], game["phi"][i],
-                                                                strict=True)
-            )
-            if best > v[i] + 1e-12:
-                v[i] = best
-                changed = True
-        if not changed:
-            return float(v[0])
-    raise ValueError("value iteration did not converge (a reward-gaining cycle?)")
+    nxt, rew, term = _arrays(game, weights)
+    return float(_values(nxt, rew, term, max_sweeps)[0])
 
 
 def is_optimal(reward: float, optimal_reward: float, tol: float = 1e-9) -> bool:
@@ -157,26 +138,40 @@ def _plain(obj: Any) -> Any:
     return obj
 
 
+def _arrays(game: dict, weights: list[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Successor and reward arrays; terminal rows loop on themselves with reward 0."""
+    n, na = len(game["states"]), len(game["actions"])
+    w = np.asarray(weights, dtype=float)
+    nxt = np.tile(np.arange(n)[:, None], (1, na))
+    rew = np.zeros((n, na))
+    term = np.asarray(game["terminal"], dtype=bool)
+    for i in np.flatnonzero(~term):
+        nxt[i] = game["next"][i]
+        rew[i] = np.asarray(game["phi"][i], dtype=float) @ w
+    return nxt, rew, term
+
+
+def _values(nxt: np.ndarray, rew: np.ndarray, term: np.ndarray, max_sweeps: int) -> np.ndarray:
+    v = np.where(term, 0.0, -np.inf)
+    for _ in range(max_sweeps):
+        new = np.where(term, 0.0, (rew + v[nxt]).max(axis=1))
+        if np.array_equal(new, v):
+            return v
+        v = new
+    raise ValueError("value iteration did not converge (a reward-gaining cycle?)")
+
+
 def best_path(game: dict, weights: list[float]) -> list[str]:
     """An action list with the highest total reward (first best action in action order)."""
-    w = np.asarray(weights, dtype=float)
-    n = len(game["states"])
-    v = np.where(game["terminal"], 0.0, -np.inf)
-    for _ in range(10_000):
-        old = v.copy()
-        for i in range(n):
-            if not game["terminal"][i]:
-                v[i] = max(float(w @ np.asarray(f)) + v[j]
-                           for j, f in zip(game["next"][i], game["phi"][i], strict=True))
-        if np.array_equal(old, v):
-            break
+    nxt, rew, term = _arrays(game, weights)
+    v = _values(nxt, rew, term, 10_000)
     path, s = [], 0
-    while not game["terminal"][s]:
-        q = [float(w @ np.asarray(f)) + v[j]
-             for j, f in zip(game["next"][s], game["phi"][s], strict=True)]
-        a = int(np.argmax(q))
+    while not term[s]:
+        a = int(np.argmax(rew[s] + v[nxt[s]]))
         path.append(game["actions"][a])
-        s = game["next"][s][a]
+        s = int(nxt[s, a])
+        if len(path) > len(term):
+            raise ValueError("no finite best path")
     return path
 
 

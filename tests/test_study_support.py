@@ -1,0 +1,68 @@
+"""Shared fixtures for the study tests: databases (SQLite, PostgreSQL) and study folders."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from sqlalchemy import text
+
+from cfteach.study.build import init_study, toy_sources
+from cfteach.study.db import make_engine
+from cfteach.study.models import Base
+
+PG_ENV = "CFTEACH_TEST_POSTGRES_URL"
+
+
+def postgres_url() -> str:
+    """The test PostgreSQL URL; fails loudly in CI when it is missing, else skips."""
+    url = os.environ.get(PG_ENV)
+    if not url:
+        if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+            pytest.fail(f"{PG_ENV} is not set: run `source scripts/postgres-for-tests` "
+                        "(scripts/test does) so the PostgreSQL tests run in CI")
+        pytest.skip(f"{PG_ENV} not set (outside CI); `source scripts/postgres-for-tests`")
+    return url
+
+
+def fresh_postgres() -> str:
+    url = postgres_url()
+    engine = make_engine(url)
+    with engine.begin() as conn:
+        Base.metadata.drop_all(conn)
+        conn.execute(text("DROP TABLE IF EXISTS alembic_version"))
+    engine.dispose()
+    return url
+
+
+@pytest.fixture(scope="session")
+def toy_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A three-domain toy study with 2 short demos per condition and 6 tests per domain."""
+    out = tmp_path_factory.mktemp("toy_study")
+    init_study(out, toy_sources(), demo_step_ms=20, completion_code="C0MPL3TE",
+               screened_out_code="SCR33N")
+    return out
+
+
+@pytest.fixture(params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)])
+def db_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
+    """Every API test runs on SQLite and on a real PostgreSQL server."""
+    if request.param == "sqlite":
+        return f"sqlite:///{tmp_path / 'study.db'}"
+    return fresh_postgres()
+
+
+def test_toy_study_is_complete(toy_study: Path) -> None:
+    import json
+
+    s = json.loads((toy_study / "study.json").read_text())
+    assert s["domains"] == ["toy_a", "toy_b", "toy_c"]
+    assert all(len(ts) == 6 for d in s["domains"] for ts in s["tests"][d])
+    # Each test set has 2 tests of each difficulty, and test ids are unique in the study.
+    for d in s["domains"]:
+        for ts in s["tests"][d]:
+            assert sorted(t["difficulty"] for t in ts) == ["high"] * 2 + ["low"] * 2 + [
+                "medium"] * 2
+    ids = [t["test_id"] for d in s["domains"] for ts in s["tests"][d] for t in ts]
+    assert len(ids) == len(set(ids)) == 54
