@@ -47,7 +47,10 @@ def _jsonable(x: Any) -> Any:
 
 
 def compute_results(
-    export: StudyExport, config: AnalysisConfig | None = None, export_dir: str = ""
+    export: StudyExport,
+    config: AnalysisConfig | None = None,
+    export_dir: str = "",
+    note: str | None = None,
 ) -> tuple[dict[str, Any], Frames]:
     """Every statistic of the paper on an export, as one JSON-ready dict (plus the frames)."""
     import pingouin
@@ -75,6 +78,7 @@ def compute_results(
     summary: dict[str, Any] = {
         "meta": {
             "export_dir": str(export_dir),
+            "note": note,
             "cfteach_version": __version__,
             "pingouin_version": pingouin.__version__,
             "scipy_version": scipy.__version__,
@@ -112,13 +116,18 @@ def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str
 
 
 def analyze(
-    export_dir: str | Path, out_dir: str | Path, config: AnalysisConfig | None = None
+    export_dir: str | Path,
+    out_dir: str | Path,
+    config: AnalysisConfig | None = None,
+    *,
+    note: str | None = None,
 ) -> dict[str, Any]:
     """Analyse the study export in `export_dir`; write results.json, report.md/.html and
-    figures/ into `out_dir`. Returns the results dict (the content of results.json)."""
+    figures/ into `out_dir`. Returns the results dict (the content of results.json).
+    `note` (e.g. how a simulated export was made) is printed under the report's title."""
     cfg = config or AnalysisConfig()
     export = load_export(export_dir)
-    results, frames = compute_results(export, cfg, str(export_dir))
+    results, frames = compute_results(export, cfg, str(export_dir), note)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     figures: dict[str, list[str]] = {}

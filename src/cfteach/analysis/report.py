@@ -214,6 +214,8 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
         f"pingouin {meta['pingouin_version']}, scipy {meta['scipy_version']}. "
         "All numbers are also in `results.json`. Tests are two-sided; α = .05."
     )
+    if meta.get("note"):
+        doc.p(meta["note"])
     part = results["participants"]
     doc.h(2, "Participants and exclusions")
     doc.p(
@@ -352,12 +354,18 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
         )
         _effects_table(doc, res)
         _means_table(doc, factor, res["means"])
+        two = factor != "condition"
         doc.p(
             "Simple effects at each difficulty: Tukey HSD between groups on that difficulty's "
-            "participant means (two groups: equal to Student's t-test); the last column "
-            "adjusts across the three difficulties (Holm)."
+            "participant means"
+            + (
+                " (two groups: equal to Student's t-test); the last column adjusts across the "
+                "three difficulties (Holm)."
+                if two
+                else "; corrected within each difficulty, not across the three."
+            )
         )
-        _tukey_table(doc, factor, res["simple_effects"]["rows"], with_diff=True, holm=True)
+        _tukey_table(doc, factor, res["simple_effects"]["rows"], with_diff=True, holm=two)
         if "overall_pairwise" in res:
             doc.p(
                 "Overall pairwise comparison of conditions (Tukey HSD on each participant's "

@@ -270,8 +270,8 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
 
     Simple effects: at each difficulty, Tukey HSD between the levels of `factor` on that
     difficulty's participant means (with two levels this is Student's t-test). These p are
-    corrected within a difficulty (Tukey) but not across the three difficulties; a Holm
-    adjustment across them is given as `p_holm_across`.
+    corrected within a difficulty (Tukey) but not across the three difficulties; for the
+    two-level factors a Holm adjustment across the three is given as `p_holm_across`.
     """
     if factor not in BETWEEN_FACTORS:
         raise ValueError(f"factor must be one of {BETWEEN_FACTORS}, got {factor!r}")
@@ -306,7 +306,7 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
         sub = cells[cells["difficulty"] == d]
         for row in _tukey_rows(sub, "optimal", factor):
             simple.append({"difficulty": d, **row})
-    if simple:
+    if simple and factor != "condition":  # one comparison per difficulty: Holm over the 3
         ps = [s["p_tukey"] if s["p_tukey"] is not None else np.nan for s in simple]
         _, adj = pg.multicomp(ps, method="holm")
         for s, a in zip(simple, adj, strict=True):

@@ -149,6 +149,7 @@ def analyze(
     )
     from cfteach.analysis import analyze as run
 
+    note = None
     if synthetic is not None:
         scfg = SyntheticConfig(
             n_participants=synthetic,
@@ -157,6 +158,11 @@ def analyze(
             interaction=interaction,
         )
         export_dir = write_export(generate(scfg), out / "export")
+        note = (
+            f"**Simulated data**: `cfteach analyze --synthetic {synthetic} --seed {seed} "
+            f"--difficulty-effect {difficulty_effect:g} --interaction {interaction:g}` "
+            "(planted effects; see docs/analysis.md). Not the paper's data."
+        )
         typer.echo(
             f"wrote simulated export ({synthetic} participants, seed {seed}) to {export_dir}"
         )
@@ -178,7 +184,7 @@ def analyze(
             figures=not no_figures,
             authors_tukey=authors_tukey,
         )
-        results = run(export_dir, out, cfg)
+        results = run(export_dir, out, cfg, note=note)
     except (ExportError, ValueError) as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(code=2) from exc

@@ -1,0 +1,62 @@
+"""The examples in docs/analysis.md run (python blocks as code, bash blocks through the CLI)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shlex
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from cfteach.cli import app
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "analysis.md"
+EXAMPLE = DOC.parent / "examples" / "analysis-synthetic-216"
+
+
+def _blocks(lang: str) -> list[str]:
+    return re.findall(rf"```{lang}\n(.*?)```", DOC.read_text(encoding="utf-8"), flags=re.S)
+
+
+@pytest.mark.slow
+def test_bash_examples_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    runner = CliRunner()
+    commands = [ln for b in _blocks("bash") for ln in b.splitlines() if ln.startswith("cfteach")]
+    # the command that regenerates the committed example is checked below, without figures
+    commands = [c for c in commands if "docs/examples" not in c]
+    assert len(commands) >= 3
+    for cmd in commands:
+        args = shlex.split(cmd)[1:]
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, f"{cmd}\n{result.output}"
+    assert (tmp_path / "demo-report" / "report.html").exists()
+
+
+@pytest.mark.slow
+def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
+    """Regenerating the example from its seed gives the committed numbers."""
+    committed = json.loads((EXAMPLE / "results.json").read_text(encoding="utf-8"))
+    cmd = next(ln for b in _blocks("bash") for ln in b.splitlines() if "docs/examples" in ln)
+    args = shlex.split(cmd)[1:]
+    args[args.index("--out") + 1] = str(tmp_path)
+    result = CliRunner().invoke(app, [*args, "--no-figures"])
+    assert result.exit_code == 0, result.output
+    fresh = json.loads((tmp_path / "results.json").read_text(encoding="utf-8"))
+    for key in ("participants", "exclusions", "icc", "h1", "mixed", "likert", "exploratory"):
+        assert fresh[key] == committed[key], key
+    assert set(committed["figures"]) == {"interaction", "likert", "confidence"}
+    for files in committed["figures"].values():
+        for f in files:
+            assert (EXAMPLE / f).exists()
+
+
+def test_python_examples_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    blocks = _blocks("python")
+    assert blocks
+    for code in blocks:
+        exec(compile(code, str(DOC), "exec"), {})
+    assert (tmp_path / "api-demo" / "report" / "results.json").exists()
