@@ -1,7 +1,98 @@
-"""Commands of this family are added as their issues land."""
+"""`cfteach simulate`: compare teaching conditions with simulated learners (docs/simulate.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
 
 import typer
 
 
+def _split(values: list[str] | None) -> list[str] | None:
+    """Accept both repeated options and comma-separated lists."""
+    if not values:
+        return None
+    return [v.strip() for item in values for v in item.split(",") if v.strip()]
+
+
 def register(app: typer.Typer) -> None:
     """Add this module's commands to the `cfteach` app."""
+
+    @app.command("simulate")
+    def simulate_cmd(
+        domains: list[str] = typer.Option(
+            None, "--domains", "-d",
+            help="Domains (comma-separated or repeated): built-in names, TOML files, or "
+                 "random:WxH:fF:nN:sS. Default: delivery,tiles,skateboard."),
+        conditions: list[str] = typer.Option(
+            None, "--conditions", "-c",
+            help="baseline, feature_only, counterfactual_only, proposed, and 'none' "
+                 "(no demonstrations). Default: all five."),
+        learner: list[str] = typer.Option(
+            None, "--learner", "-l",
+            help="Learner models: counterfactual, irl, noisy. Default: counterfactual,noisy."),
+        learners: int = typer.Option(32, "--learners", "-n", min=1,
+                                     help="Simulated learners per condition and model."),
+        seeds: int = typer.Option(1, "--seeds", "-k", min=1,
+                                  help="Replications: teaching + tests are redone per seed."),
+        seed: int = typer.Option(0, "--seed", min=0, help="Root seed of the learners' draws."),
+        candidates: bool = typer.Option(
+            False, "--all", help="Also give every candidate test (not just the selected)."),
+        source: Path = typer.Option(
+            None, "--from", help="Read curricula/tests from a `cfteach reproduce` folder "
+                                 "instead of teaching."),
+        profile: str = typer.Option("default", "--profile", help="Teaching profile."),
+        human_models: int = typer.Option(8, "--human-models", min=1,
+                                         help="Human models sampled by the teacher."),
+        backend: str = typer.Option("local", "--backend", help="local, dask or ray."),
+        workers: int = typer.Option(None, "--workers", min=1,
+                                    help="Worker processes (default: all cores)."),
+        scheduler: str = typer.Option(None, "--scheduler",
+                                      help="Dask scheduler / Ray address (default: start a "
+                                           "local cluster)."),
+        chunk: int = typer.Option(16, "--chunk", min=1,
+                                  help="Learners per work chunk (results depend on it)."),
+        out: Path = typer.Option(Path("out/simulate"), "--out", "-o", help="Output folder."),
+    ) -> None:
+        """Teach simulated learners every condition's curriculum and test them: proportion
+        optimal by difficulty x condition (95% CIs) and the H1 overlap-correctness
+        correlation, as JSON, CSV and plots."""
+        import sys
+
+        from cfteach.simulate.sweep import run_sweep
+
+        try:
+            result = run_sweep(
+                _split(domains) or ["delivery", "tiles", "skateboard"],
+                _split(conditions), _split(learner), n_learners=learners, seeds=seeds,
+                include_candidates=candidates, source=source, profile=profile,
+                human_models=human_models, seed=seed, backend=backend, n_workers=workers,
+                scheduler=scheduler, chunk_learners=chunk, progress=sys.stderr.isatty())
+        except (ValueError, FileNotFoundError, ImportError, ConnectionError) as err:
+            typer.echo(f"error: {err}", err=True)
+            raise typer.Exit(2) from None
+        summ = result.write(out)
+        _print_summary(summ)
+        typer.echo(f"\nwrote {out}/results.json, answers.csv, beliefs.csv and "
+                   f"{len(summ['figures'])} figures")
+
+
+def _print_summary(summ: dict) -> None:
+    rows = summ["proportion_optimal"]
+    scope = "all" if any(r["domain"] == "all" for r in rows) else None
+    for model in sorted({r["learner_model"] for r in rows}):
+        typer.echo(f"\nlearner model: {model}   (proportion optimal [95% CI], "
+                   f"domain: {scope or rows[0]['domain']})")
+        typer.echo(f"  {'condition':22s} {'low':>20s} {'medium':>20s} {'high':>20s}")
+        sel = [r for r in rows if r["learner_model"] == model
+               and r["domain"] == (scope or r["domain"])]
+        for cond in dict.fromkeys(r["condition"] for r in sel):
+            cells = {r["difficulty"]: r for r in sel if r["condition"] == cond}
+            txt = "".join(
+                f" {c['proportion_optimal']:.2f} [{c['ci_low']:.2f},{c['ci_high']:.2f}]".rjust(21)
+                if (c := cells.get(lv)) else " " * 21 for lv in ("low", "medium", "high"))
+            typer.echo(f"  {cond:22s}{txt}")
+    for h in summ["h1"]:
+        if h["domain"] in ("all",) or len({x["domain"] for x in summ["h1"]}) == 1:
+            rho = "n/a" if h["spearman_rho"] is None else f"{h['spearman_rho']:+.3f}"
+            typer.echo(f"H1 [{h['learner_model']}, {h['source']}]: Spearman rho(overlap, "
+                       f"correct) = {rho} over {h['n']} answers")

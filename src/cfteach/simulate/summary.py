@@ -5,7 +5,7 @@ interaction plot in the analysis figures' style.
 The unit of analysis is the learner, as the participant is in the study: each learner's
 proportion of optimal answers per difficulty level (averaged over domains for the pooled
 "all" rows, as the paper averages each participant over domains), then the mean over
-learners with a t-based 95% CI.
+learners with a t-based 95% CI (clipped to [0, 1]).
 """
 
 from __future__ import annotations
@@ -41,6 +41,12 @@ def mean_ci(values: np.ndarray, level: float = 0.95) -> tuple[float, float, floa
     return m, m - half, m + half
 
 
+def proportion_ci(values: np.ndarray, level: float = 0.95) -> tuple[float, float, float]:
+    """`mean_ci` of per-learner proportions, clipped to [0, 1] (a proportion's range)."""
+    m, lo, hi = mean_ci(values, level)
+    return m, max(0.0, lo), min(1.0, hi)
+
+
 def proportion_table(df: pd.DataFrame) -> list[dict[str, Any]]:
     """Proportion optimal per learner model x domain (and "all") x condition x difficulty."""
     _check(df)
@@ -62,7 +68,7 @@ def proportion_table(df: pd.DataFrame) -> list[dict[str, Any]]:
                               observed=True).size()
     for (model, domain, cond, diff), g in both.groupby(
             ["learner_model", "domain", "condition", "difficulty"], observed=True):
-        m, lo, hi = mean_ci(g["correct"].to_numpy())
+        m, lo, hi = proportion_ci(g["correct"].to_numpy())
         n_answers = int(counts.xs((model, cond, diff), level=(0, 2, 3)).sum()) \
             if domain == "all" else int(counts.loc[(model, domain, cond, diff)])
         rows.append({"learner_model": model, "domain": domain, "condition": cond,
