@@ -30,6 +30,7 @@ REFERENCE_TOL = 1e-25
 REFERENCE_MAX_SWEEPS = 1000
 TIE_TOL = 1e-5
 _EXACT_REL_TOL = 1e-12  # changes below this are float creep, not progress
+_CYCLE_CHECK_EVERY = 8  # sweeps between greedy-graph positive-cycle checks
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,7 +204,8 @@ def _solve_exact(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
     k = 0
     while act.size:
         k += 1
-        Vn = (Ra + Va.ravel()[flat]).max(axis=-1)
+        Qa = Ra + Va.ravel()[flat]
+        Vn = Qa.max(axis=-1)
         with np.errstate(invalid="ignore"):
             gain = Vn - Va
             changed = (gain > _EXACT_REL_TOL * np.maximum(1.0, np.abs(Vn))).any(axis=-1)
@@ -211,6 +213,12 @@ def _solve_exact(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
         running = status == 0
         conv = running & ~changed
         diverged = running & changed & ((k >= lim) | (Vn > up[:, None]).any(axis=-1))
+        if k % _CYCLE_CHECK_EVERY == 0:
+            # A positive cycle in the current greedy policy's graph is a certificate.
+            check = running & changed & ~diverged
+            if check.any():
+                diverged[check] = _greedy_has_positive_cycle(Qa[check], Ra[check],
+                                                             flat[check] % s_n)
         status[conv] = 1
         status[diverged] = 2
         stop_at[conv | diverged] = k
@@ -226,6 +234,32 @@ def _solve_exact(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
             flat = nxt[act] + (np.arange(act.size) * s_n)[:, None, None]
     V[~bounded] = np.where(valid[~bounded], np.inf, 0.0)
     return V, bounded, sweeps
+
+
+def _greedy_has_positive_cycle(Q: np.ndarray, R: np.ndarray, nxt: np.ndarray) -> np.ndarray:
+    """Per pair: does the greedy policy's successor graph contain a positive-reward cycle?
+
+    The graph is functional (one successor per state), so pointer doubling finds, for every
+    state, a node on the cycle it ends in, and the smallest node of that cycle as its label;
+    summing rewards per label gives every cycle's total.
+    """
+    p_n, s_n, _ = Q.shape
+    pi = Q.argmax(axis=-1)[..., None]
+    f = np.take_along_axis(nxt, pi, axis=-1)[..., 0]  # [P, S] local successor
+    g = np.take_along_axis(R, pi, axis=-1)[..., 0]  # [P, S] reward
+    off = (np.arange(p_n) * s_n)[:, None]
+    jump = (f + off).ravel()  # global index after 2^j steps
+    low = np.minimum(np.arange(p_n * s_n), jump)  # smallest node seen in 2^j + 1 steps
+    for _ in range(max(1, int(np.ceil(np.log2(s_n)))) + 1):
+        low = np.minimum(low, low[jump])
+        jump = jump[jump]
+    on_cycle = np.zeros(p_n * s_n, dtype=bool)
+    on_cycle[jump] = True  # after >= S steps every walk is on its cycle
+    totals = np.bincount(low[on_cycle], weights=g.ravel()[on_cycle], minlength=p_n * s_n)
+    scale = np.bincount(low[on_cycle], weights=np.abs(g.ravel()[on_cycle]),
+                        minlength=p_n * s_n)
+    positive = totals > 1e-9 * np.maximum(1.0, scale)
+    return positive.reshape(p_n, s_n).any(axis=1)
 
 
 def greedy_actions(Q: np.ndarray) -> np.ndarray:
