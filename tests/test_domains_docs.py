@@ -1,0 +1,25 @@
+"""The Python examples in docs/domains.md run."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "domains.md"
+BLOCKS = re.findall(r"```python\n(.*?)```", DOCS.read_text(), re.S)
+
+
+def test_docs_have_examples() -> None:
+    assert len(BLOCKS) >= 2
+
+
+@pytest.mark.parametrize("i", range(len(BLOCKS)))
+def test_docs_example_runs(i: int, capsys: pytest.CaptureFixture[str]) -> None:
+    exec(compile(BLOCKS[i], f"{DOCS}:block{i}", "exec"), {})
+    out = capsys.readouterr().out
+    if i == 0:
+        assert "191" in out and "'station': True" in out
+    else:
+        assert "(8, 2, 553, 6) True" in out and "['right', 'right']" in out
