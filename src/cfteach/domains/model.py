@@ -151,6 +151,12 @@ class Instance:
         if self.is_terminal(self.initial_state):
             raise ValueError(f"{spec.source}: instance {self.env_code}: the initial state is "
                              "already terminal")
+        object.__setattr__(self, "_frozen", True)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if getattr(self, "_frozen", False):
+            raise AttributeError(f"Instance is immutable (cannot set {name!r})")
+        object.__setattr__(self, name, value)
 
     def __repr__(self) -> str:
         return (f"Instance({self.domain.name!r}, index={self.index}, "
