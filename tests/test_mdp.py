@@ -260,3 +260,22 @@ def test_greedy_first_argmax_and_ties() -> None:
     Q2 = np.array([3.0, np.nextafter(3.0, 4.0), 3.0])
     assert greedy_actions(Q2) == 1  # the ulp-larger one wins
     assert tied_actions(Q2).all()
+
+
+def test_reference_shortcut_matches_full_reference_sweeps() -> None:
+    """Skipping proven-divergent pairs does not change the reference's flags or values."""
+    from cfteach.mdp.vi import _solve_reference
+
+    dom = load("delivery")
+    b = compile_domain(dom).subset([0, 9, 33, 63])
+    rng = np.random.default_rng(11)
+    W = rng.normal(size=(10, 3))
+    W[:5, 2] = -np.abs(W[:5, 2])
+    vals = value_iteration(b, W, method="reference")
+    R = np.einsum("esaf,mf->emsa", b.features, W).reshape(-1, b.S, b.A)
+    nxt = np.broadcast_to(b.next_state[:, None], (b.E, len(W), b.S, b.A)).reshape(-1, b.S, b.A)
+    v, bnd, sw = _solve_reference(R, nxt)
+    assert np.array_equal(vals.bounded.ravel(), bnd)
+    assert np.array_equal(vals.sweeps.ravel(), sw)
+    assert 0 < bnd.mean() < 1
+    np.testing.assert_array_equal(vals.V.reshape(-1, b.S)[bnd], v[bnd])

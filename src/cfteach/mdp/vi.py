@@ -5,8 +5,10 @@ cycle of positive total reward and the values diverge. Two methods:
 
 * ``"reference"``: what the authors' code does (spec §3): V0 = 0, sweeps until the largest
   change is <= 1e-25, at most 1000 sweeps, ``bounded`` = fewer than 1000 sweeps were needed.
-  This flag is wrong both ways round for cheap no-op weights (a bounded fixed point that
-  takes > 1000 sweeps to reach from 0), which the reference silently treats as unbounded.
+  This flag is wrong for cheap no-op weights (a bounded fixed point that takes > 1000 sweeps
+  to reach from 0), which the reference silently treats as unbounded. Pairs with a proven
+  positive cycle are not swept (the reference's sweeps could never settle): they get
+  ``bounded = False``, ``sweeps = 1000`` and, unlike the reference, ``V = +inf``.
   We use synchronous (Jacobi) sweeps, the reference Gauss-Seidel ones in set order; the fixed
   point is the same, the sweep count can differ only in borderline cases.
 * ``"exact"`` (default): Bellman-Ford longest paths to the terminal. V starts at -inf on real
@@ -129,10 +131,14 @@ def value_iteration(
                 ne * nm, s_n, a_n)
             valid = np.broadcast_to(b.valid[e0:e1, None], (ne, nm, s_n)).reshape(ne * nm, s_n)
             n_valid = np.broadcast_to(b.n_states[e0:e1, None], (ne, nm)).reshape(-1)
+            v, bnd, sw = _solve_exact(R, nxt, valid, n_valid)
             if method == "reference":
-                v, bnd, sw = _solve_reference(R, nxt)
-            else:
-                v, bnd, sw = _solve_exact(R, nxt, valid, n_valid)
+                # A proven positive cycle never lets the reference's sweeps settle, so only
+                # the other pairs need the (up to 1000) reference sweeps.
+                ok = np.flatnonzero(bnd)
+                sw[:] = REFERENCE_MAX_SWEEPS
+                if ok.size:
+                    v[ok], bnd[ok], sw[ok] = _solve_reference(R[ok], nxt[ok])
             q = R + _gather(v, nxt)
             Q[e0:e1, m0:m1] = q.reshape(ne, nm, s_n, a_n)
             V[e0:e1, m0:m1] = v.reshape(ne, nm, s_n)
