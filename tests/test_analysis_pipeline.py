@@ -140,11 +140,27 @@ def test_planted_effects_show_up_in_the_paper_tests(report) -> None:
     assert len(planted) >= 1
 
 
-def test_compute_results_refuses_empty_conditions() -> None:
-    ex = generate(SyntheticConfig(n_participants=8, seed=1, **SMALL))
-    kept = ex.subset(ex.participants.loc[ex.participants.condition != "proposed", "participant_id"])
-    with pytest.raises(ValueError, match="no retained participant in condition"):
-        compute_results(kept)
+def test_missing_conditions_skip_only_what_cannot_run() -> None:
+    ex = generate(SyntheticConfig(n_participants=16, seed=1, **SMALL))
+    p = ex.participants
+    no_fs = ex.subset(p.loc[~p.condition.isin(["feature_only", "proposed"]), "participant_id"])
+    r, _ = compute_results(no_fs)
+    assert r["participants"]["conditions_missing"] == ["feature_only", "proposed"]
+    assert "skipped" in r["mixed"]["feature_scaffolding"]
+    assert "skipped" in r["likert"]["mental_effort"]["feature_scaffolding"]
+    assert "skipped" in r["exploratory"]["time_norm"]["feature_scaffolding"]
+    cond = r["mixed"]["condition"]  # two conditions left: still a valid 2-group model
+    assert cond["effects"]["between"]["df1"] == 1
+    assert cond["effects"]["between"]["F"] == pytest.approx(
+        r["mixed"]["counterfactual"]["effects"]["between"]["F"]
+    )
+    assert r["h1"]["rm_anova"]["n_participants"] == 8
+    one = ex.subset(p.loc[p.condition == "baseline", "participant_id"])
+    r1, _ = compute_results(one)
+    assert all("skipped" in r1["mixed"][f] for f in S.BETWEEN_FACTORS)
+    assert "skipped" in r1["likert"]["informativeness"]["condition"]
+    with pytest.raises(ValueError, match="the analyses need at least 2"):
+        compute_results(ex.subset(p["participant_id"].iloc[:1]))
 
 
 def test_cli_synthetic_then_analyze_export(tmp_path: Path) -> None:

@@ -61,6 +61,17 @@ def interaction_plot(results: dict[str, Any], out_dir: Path) -> list[str]:
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2), sharey=True)
     x = np.arange(len(DIFFICULTIES))
     for ax, (factor, title, labels) in zip(axes, panels, strict=True):
+        if "skipped" in results[factor]:
+            ax.text(
+                0.5,
+                0.5,
+                "not enough participants",
+                ha="center",
+                va="center",
+                transform=ax.transAxes,
+            )
+            ax.set_title(title)
+            continue
         means = pd.DataFrame(results[factor]["means"])
         levels = list(dict.fromkeys(means["level"]))
         for i, lvl in enumerate(levels):

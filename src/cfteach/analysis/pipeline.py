@@ -63,12 +63,13 @@ def compute_results(
     kept, excluded = apply_exclusions(export, cfg.exclusions)
     if kept.participants.empty:
         raise ValueError("no participant is left after the exclusions; nothing to analyse")
-    missing = [c for c in CONDITIONS if c not in set(kept.participants["condition"])]
-    if missing:
+    if kept.participants["participant_id"].nunique() < 2:
         raise ValueError(
-            f"no retained participant in condition(s) {', '.join(missing)}; "
-            "the between-subjects analyses need all four"
+            f"{len(kept.participants)} participant(s) left after the exclusions; "
+            "the analyses need at least 2"
         )
+    if kept.tests.empty:
+        raise ValueError("the retained participants have no test responses; nothing to analyse")
     frames = build_frames(kept)
     with warnings.catch_warnings():
         # pingouin 0.7 calls pandas APIs that pandas 3.1 deprecates; not ours to fix
@@ -94,6 +95,7 @@ def compute_results(
             "n_retained": int(len(kept.participants)),
             "retained_by_condition": {c: int(by_cond.get(c, 0)) for c in CONDITIONS},
             "n_test_responses": int(len(kept.tests)),
+            "conditions_missing": [c for c in CONDITIONS if not by_cond.get(c, 0)],
         },
         "exclusions": excluded.to_dict(orient="records"),
         **results,

@@ -10,7 +10,7 @@ import html
 from pathlib import Path
 from typing import Any
 
-from cfteach.analysis.io import CONDITIONS, DIFFICULTIES, LIKERT_ITEMS
+from cfteach.analysis.io import DIFFICULTIES, LIKERT_ITEMS
 
 FACTOR_TITLES = {
     "counterfactual": ("H2", "counterfactual scaffolding"),
@@ -204,6 +204,84 @@ def _mwu_sentence(name_x: str, name_y: str, r: dict[str, Any]) -> str:
     )
 
 
+def _mixed_section(doc: Doc, factor: str, label: str, res: dict[str, Any]) -> None:
+    inter, betw = res["effects"]["interaction"], res["effects"]["between"]
+    doc.p(
+        f"Two-way mixed ANOVA (N = {res['n_participants']}; "
+        + ", ".join(f"{_level(factor, k)}: {v}" for k, v in res["n_by_level"].items())
+        + "). Interaction: "
+        + fmt_F(inter["df1"], inter["df2"], inter["F"], inter["p"])
+        + f"; main effect of {label}: "
+        + fmt_F(betw["df1"], betw["df2"], betw["F"], betw["p"])
+        + "."
+    )
+    _effects_table(doc, res)
+    _means_table(doc, factor, res["means"])
+    two = factor != "condition"
+    doc.p(
+        "Simple effects at each difficulty: Tukey HSD between groups on that difficulty's "
+        "participant means"
+        + (
+            " (two groups: equal to Student's t-test); the last column adjusts across the "
+            "three difficulties (Holm)."
+            if two
+            else "; corrected within each difficulty, not across the three."
+        )
+    )
+    _tukey_table(doc, factor, res["simple_effects"]["rows"], with_diff=True, holm=two)
+    if "overall_pairwise" in res:
+        doc.p(
+            "Overall pairwise comparison of conditions (Tukey HSD on each participant's "
+            "mean over all tests, one value per participant)."
+        )
+        _tukey_table(doc, factor, res["overall_pairwise"]["rows"], False, False)
+
+
+def _likert_section(doc: Doc, factor: str, lk: dict[str, Any]) -> None:
+    if factor in ("counterfactual", "feature_scaffolding"):
+        names = ("without", "with")
+        for item in LIKERT_ITEMS:
+            name = item.replace("_", " ").capitalize()
+            r = lk[item][factor]
+            if "skipped" in r:
+                doc.p(f"{name}: Mann-Whitney U skipped ({r['skipped']}).")
+                continue
+            doc.p(
+                f"{name} (Mann-Whitney U, per-participant median over domains): "
+                + _mwu_sentence(*names, r)
+                + "."
+            )
+    else:
+        for item in LIKERT_ITEMS:
+            kw = lk[item]["condition"]
+            name = item.replace("_", " ").capitalize()
+            if "skipped" in kw:
+                doc.p(f"{name}: Kruskal-Wallis skipped ({kw['skipped']}).")
+                continue
+            doc.p(
+                f"{name}: Kruskal-Wallis H({fmt_df(kw['df'])}) = {fmt_num(kw['H'])}, "
+                f"{fmt_p(kw['p'])}, ε² = {fmt_num(kw['epsilon_sq'], 3, lead=False)}, "
+                f"N = {kw['n']}; medians "
+                + ", ".join(f"{c} {fmt_num(m, 1)}" for c, m in kw["medians"].items())
+                + "."
+            )
+            doc.table(
+                ["A", "B", "U", "p (unc.)", f"p ({lk['padjust']})", "Mdn A", "Mdn B"],
+                [
+                    [
+                        r["A"],
+                        r["B"],
+                        fmt_num(r["U"], 1),
+                        fmt_p(r["p"]),
+                        fmt_p(r["p_corr"]),
+                        fmt_num(r["median_x"], 1),
+                        fmt_num(r["median_y"], 1),
+                    ]
+                    for r in lk[item]["condition_pairwise"]["rows"]
+                ],
+            )
+
+
 def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Doc:
     """The report as a `Doc` (rendered by `write_report`)."""
     doc = Doc()
@@ -342,68 +420,11 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
     for factor, (hyp, label) in FACTOR_TITLES.items():
         res = results["mixed"][factor]
         doc.h(2, f"{hyp}: difficulty × {label}")
-        inter, betw = res["effects"]["interaction"], res["effects"]["between"]
-        doc.p(
-            f"Two-way mixed ANOVA (N = {res['n_participants']}; "
-            + ", ".join(f"{_level(factor, k)}: {v}" for k, v in res["n_by_level"].items())
-            + "). Interaction: "
-            + fmt_F(inter["df1"], inter["df2"], inter["F"], inter["p"])
-            + f"; main effect of {label}: "
-            + fmt_F(betw["df1"], betw["df2"], betw["F"], betw["p"])
-            + "."
-        )
-        _effects_table(doc, res)
-        _means_table(doc, factor, res["means"])
-        two = factor != "condition"
-        doc.p(
-            "Simple effects at each difficulty: Tukey HSD between groups on that difficulty's "
-            "participant means"
-            + (
-                " (two groups: equal to Student's t-test); the last column adjusts across the "
-                "three difficulties (Holm)."
-                if two
-                else "; corrected within each difficulty, not across the three."
-            )
-        )
-        _tukey_table(doc, factor, res["simple_effects"]["rows"], with_diff=True, holm=two)
-        if "overall_pairwise" in res:
-            doc.p(
-                "Overall pairwise comparison of conditions (Tukey HSD on each participant's "
-                "mean over all tests, one value per participant)."
-            )
-            _tukey_table(doc, factor, res["overall_pairwise"]["rows"], False, False)
-        lk = results["likert"]
-        if factor in ("counterfactual", "feature_scaffolding"):
-            names = ("without", "with")
-            for item in LIKERT_ITEMS:
-                doc.p(
-                    f"{item.replace('_', ' ').capitalize()} (Mann-Whitney U, per-participant "
-                    "median over domains): " + _mwu_sentence(*names, lk[item][factor]) + "."
-                )
+        if "skipped" in res:
+            doc.p(f"Mixed ANOVA skipped: {res['skipped']}.")
         else:
-            for item in LIKERT_ITEMS:
-                kw = lk[item]["condition"]
-                doc.p(
-                    f"{item.replace('_', ' ').capitalize()}: Kruskal-Wallis H({fmt_df(kw['df'])})"
-                    f" = {fmt_num(kw['H'])}, {fmt_p(kw['p'])}, N = {kw['n']}; medians "
-                    + ", ".join(f"{c} {fmt_num(kw['medians'][c], 1)}" for c in CONDITIONS)
-                    + "."
-                )
-                doc.table(
-                    ["A", "B", "U", "p (unc.)", f"p ({lk['padjust']})", "Mdn A", "Mdn B"],
-                    [
-                        [
-                            r["A"],
-                            r["B"],
-                            fmt_num(r["U"], 1),
-                            fmt_p(r["p"]),
-                            fmt_p(r["p_corr"]),
-                            fmt_num(r["median_x"], 1),
-                            fmt_num(r["median_y"], 1),
-                        ]
-                        for r in lk[item]["condition_pairwise"]["rows"]
-                    ],
-                )
+            _mixed_section(doc, factor, label, res)
+        _likert_section(doc, factor, results["likert"])
     if "interaction" in figures:
         doc.img(
             f"figures/{figures['interaction'][0]}",
@@ -420,6 +441,9 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
         rows = []
         for factor in ("counterfactual", "feature_scaffolding", "condition"):
             a = res[factor]
+            if "skipped" in a:
+                rows.append([factor, "skipped: " + a["skipped"], "", ""])
+                continue
             ms = ", ".join(
                 f"{_level(factor, k)} {fmt_num(v['mean'])}" for k, v in a["means"].items()
             )
@@ -431,10 +455,11 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
                     ms,
                 ]
             )
-        doc.p(
-            f"**{res['label']}** (per-participant mean; one-way ANOVA, N = "
-            f"{res['condition']['n']}):"
+        n = max(
+            (res[f].get("n", 0) for f in ("counterfactual", "feature_scaffolding", "condition")),
+            default=0,
         )
+        doc.p(f"**{res['label']}** (per-participant mean; one-way ANOVA, N = {n}):")
         doc.table(["Factor", "Test", "ηp²", "Means"], rows)
     return doc
 

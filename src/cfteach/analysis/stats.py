@@ -238,10 +238,28 @@ def _levels(factor: str) -> list[Any]:
     return list(CONDITIONS) if factor == "condition" else [0, 1]
 
 
+def usable_levels(df: pd.DataFrame, factor: str, min_n: int = 2) -> list[Any]:
+    """Levels of `factor` (in design order) with at least `min_n` participants in `df`."""
+    counts = df.groupby(df[factor].astype(str), observed=True)["participant_id"].nunique()
+    return [lvl for lvl in _levels(factor) if counts.get(str(lvl), 0) >= min_n]
+
+
+def _skip(df: pd.DataFrame, factor: str, levels: list[Any]) -> dict[str, Any] | None:
+    """A 'skipped' result when fewer than two levels have two or more participants."""
+    if len(levels) >= 2:
+        return None
+    counts = df.groupby(df[factor].astype(str), observed=True)["participant_id"].nunique()
+    have = ", ".join(f"{k}: {v}" for k, v in counts.items()) or "none"
+    return {
+        "factor": factor,
+        "skipped": f"needs two groups of at least 2 participants (have {have})",
+    }
+
+
 def group_difficulty_means(cells: pd.DataFrame, factor: str, dv: str = "optimal") -> list[dict]:
     """Mean and 95% CI of `dv` for every level of `factor` at every difficulty."""
     out = []
-    for lvl in _levels(factor):
+    for lvl in usable_levels(cells, factor, min_n=1):
         for d in DIFFICULTIES:
             sel = cells[(cells[factor] == lvl) & (cells["difficulty"] == d)][dv]
             out.append({"level": str(lvl), "difficulty": d, **mean_ci(sel)})
@@ -278,6 +296,11 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
     cells = frames.cells.copy()
     if factor == "condition":
         cells["condition"] = cells["condition"].astype(str)
+    levels = usable_levels(cells, factor)
+    skipped = _skip(cells, factor, levels)
+    if skipped:
+        return skipped
+    cells = cells[cells[factor].astype(str).isin([str(lv) for lv in levels])]
     res = pg.mixed_anova(
         data=cells,
         dv="optimal",
@@ -360,24 +383,38 @@ def likert_tests(frames: Frames, padjust: str = "holm") -> dict[str, Any]:
     out: dict[str, Any] = {"padjust": padjust}
     for item in LIKERT_ITEMS:
         res: dict[str, Any] = {}
-        for factor in ("counterfactual", "feature_scaffolding"):
-            res[factor] = {
-                "test": "Mann-Whitney U (pingouin.mwu), x = without",
-                **_mwu(s.loc[s[factor] == 0, item], s.loc[s[factor] == 1, item]),
-            }
         sub = s.dropna(subset=[item]).copy()
         sub["condition"] = sub["condition"].astype(str)
+        for factor in ("counterfactual", "feature_scaffolding"):
+            skipped = _skip(sub, factor, usable_levels(sub, factor))
+            res[factor] = skipped or {
+                "test": "Mann-Whitney U (pingouin.mwu), x = without",
+                **_mwu(sub.loc[sub[factor] == 0, item], sub.loc[sub[factor] == 1, item]),
+            }
+        conds = usable_levels(sub, "condition")
+        skipped = _skip(sub, "condition", conds)
+        if skipped:
+            res["condition"] = skipped
+            res["condition_pairwise"] = {
+                "test": "Mann-Whitney U per pair of conditions",
+                "rows": [],
+            }
+            out[item] = res
+            continue
+        sub = sub[sub["condition"].isin(conds)]
         kw = pg.kruskal(data=sub, dv=item, between="condition").iloc[0]
+        h, n = float(kw["H"]), len(sub)
         res["condition"] = {
             "test": "Kruskal-Wallis H (pingouin.kruskal)",
-            "H": _num(kw["H"]),
+            "H": _num(h),
             "df": _num(kw["ddof1"]),
             "p": _num(_get(kw, "p_unc")),
-            "n": int(len(sub)),
-            "medians": {c: _num(sub.loc[sub["condition"] == c, item].median()) for c in CONDITIONS},
+            "epsilon_sq": _num(h / (n - 1)) if n > 1 else None,  # Tomczak & Tomczak (2014)
+            "n": int(n),
+            "medians": {c: _num(sub.loc[sub["condition"] == c, item].median()) for c in conds},
         }
         pairs = []
-        for a, b in itertools.combinations(CONDITIONS, 2):
+        for a, b in itertools.combinations(conds, 2):
             pairs.append(
                 {
                     "A": a,
@@ -406,7 +443,13 @@ def exploratory(frames: Frames) -> dict[str, Any]:
             continue
         res: dict[str, Any] = {"label": label}
         for factor in BETWEEN_FACTORS:
-            a = pg.anova(data=sub, dv=measure, between=factor).iloc[0]
+            levels = usable_levels(sub, factor)
+            skipped = _skip(sub, factor, levels)
+            if skipped:
+                res[factor] = skipped
+                continue
+            fsub = sub[sub[factor].astype(str).isin([str(lv) for lv in levels])]
+            a = pg.anova(data=fsub, dv=measure, between=factor).iloc[0]
             res[factor] = {
                 "test": "one-way ANOVA (pingouin.anova)",
                 "F": _num(a["F"]),
@@ -414,12 +457,11 @@ def exploratory(frames: Frames) -> dict[str, Any]:
                 "df2": _num(a["ddof2"]),
                 "p": _num(_get(a, "p_unc")),
                 "np2": _num(a.get("np2")),
-                "n": int(len(sub)),
+                "n": int(len(fsub)),
                 "means": {
-                    str(lvl): mean_ci(sub.loc[sub[factor] == lvl, measure])
-                    for lvl in sorted(sub[factor].unique(), key=str)
+                    str(lvl): mean_ci(fsub.loc[fsub[factor] == lvl, measure]) for lvl in levels
                 },
-                "tukey": _tukey_rows(sub, measure, factor),
+                "tukey": _tukey_rows(fsub, measure, factor),
             }
         out[measure] = res
     return out
