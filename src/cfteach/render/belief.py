@@ -122,6 +122,7 @@ def plot_belief_sphere(
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     if resolution < 8:
         raise ValueError(f"resolution must be at least 8, got {resolution}")
@@ -135,10 +136,6 @@ def plot_belief_sphere(
         in_e = inside(ne, centres)
         colors[in_e & ~in_b] = BEC_COLOR
         colors[in_e & in_b] = BOTH_COLOR
-    # plot_surface takes one colour per vertex grid cell: pad the face array by one row/col.
-    face_colors = np.zeros(verts.shape[:-1] + (4,))
-    face_colors[:-1, :-1] = colors
-
     if view is None:
         direction = None
         if w_true is not None:
@@ -153,8 +150,8 @@ def plot_belief_sphere(
     el, az = np.radians(view[0]), np.radians(view[1])
     eye = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
 
-    def front(points: np.ndarray) -> np.ndarray:
-        return points @ eye > 0.02
+    def front(points: np.ndarray, margin: float = 0.02) -> np.ndarray:
+        return points @ eye > margin
 
     if ax is None:
         fig = plt.figure(figsize=(3.6, 3.6), dpi=100)
@@ -162,17 +159,15 @@ def plot_belief_sphere(
         fig.subplots_adjust(left=0, right=1, bottom=0, top=0.92 if title else 1.0)
     else:
         fig = ax.figure
-    ax.plot_surface(
-        verts[..., 0],
-        verts[..., 1],
-        verts[..., 2],
-        facecolors=face_colors,
-        rstride=1,
-        cstride=1,
-        linewidth=0,
-        antialiased=False,
-        shade=False,
+    # One quad per mesh face; only the faces turned towards the viewer (orthographic view),
+    # with colours as one float array (matplotlib's fast path).
+    quads = np.stack([verts[:-1, :-1], verts[1:, :-1], verts[1:, 1:], verts[:-1, 1:]], axis=2)
+    visible = front(centres, margin=-0.08)
+    mesh = Poly3DCollection(
+        quads[visible], facecolors=colors[visible], edgecolors="none", linewidths=0
     )
+    mesh.set_antialiased(False)
+    ax.add_collection3d(mesh)
     # Only what faces the viewer is drawn on top of the surface (draw order = call order).
     lift = 1.01
     for normals, color, style in ((ne, "#b8860b", "--"), (nb, "#1b5e20", "-")):
@@ -199,6 +194,7 @@ def plot_belief_sphere(
         if front(w[None])[0]:
             ax.scatter(*(w[:, None] * lift), color="#b71c1c", marker="*", s=110, depthshade=False)
         ax.text(*(w * 1.18), "w*", color="#b71c1c", fontsize=9, ha="center")
+    ax.set_proj_type("ortho")
     ax.view_init(elev=view[0], azim=view[1])
     ax.set_box_aspect((1, 1, 1), zoom=1.3)
     ax.set_xlim(-1.05, 1.05)
@@ -257,6 +253,7 @@ def plot_belief_areas(
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
+    own = ax is None
     if ax is None:
         fig, ax = plt.subplots(figsize=(5.0, 3.2), dpi=100)
     else:
@@ -276,7 +273,8 @@ def plot_belief_areas(
     ax.legend(fontsize=8, frameon=False)
     if title:
         ax.set_title(title, fontsize=10)
-    fig.tight_layout()
+    if own:  # fixed margins: tight_layout costs ~1 s on a log axis
+        fig.subplots_adjust(left=0.15, right=0.97, bottom=0.16, top=0.9 if title else 0.96)
     return fig
 
 
