@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import copy
 import json
+from functools import cache
 
 import numpy as np
 import pandas as pd
@@ -20,7 +22,8 @@ from cfteach.simulate.sweep import (
 from simulate_fixtures import make_curriculum, make_tests
 
 
-def _material(seed: int = 0) -> Material:
+@cache
+def _tiles_material() -> tuple[dict, dict]:
     dom = load("tiles")
     curricula = {
         "baseline": make_curriculum(dom, "baseline", [(15, 0), (480, 3)]),
@@ -31,6 +34,11 @@ def _material(seed: int = 0) -> Material:
                              "high": [(511, 1), (510, 7)]},
                        candidates=[(9, 1, 1.2, 4), (77, 5, 0.5, 2), (400, 3, 0.1, 0),
                                    (401, 3, 0.3, 1)])
+    return curricula, tests
+
+
+def _material(seed: int = 0) -> Material:
+    curricula, tests = copy.deepcopy(_tiles_material())
     return Material("tiles", seed, curricula, tests)
 
 
@@ -41,6 +49,7 @@ def _run(executor=None, **kw) -> pd.DataFrame:
     return res.answers
 
 
+@pytest.mark.slow
 def test_local_one_and_two_workers_give_identical_answers() -> None:
     with Executor(n_workers=1) as one:
         a = _run(one)
