@@ -155,7 +155,7 @@ def test_every_image_and_link_of_the_report_resolves(built):
 
 def test_demo_gif_animates_the_walk_in_the_right_cells(built):
     out, _ = built
-    cell = 36  # the report's default GIF cell size
+    cell = 48  # the report's default GIF cell size
     with Image.open(out / "skateboard/img/proposed-demo1.gif") as im:
         assert im.n_frames == 3  # start + 2 moves
         for k, x in enumerate([4, 5, 6]):

@@ -266,6 +266,10 @@ def plot_belief_areas(
         color = CONDITION_COLORS.get(cond, f"C{k}")
         ax.plot(xs, ys, marker="o", ms=4, lw=1.6, color=color, label=cond, alpha=0.9)
     ax.set_yscale("log")
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("demonstrations shown")
     ax.set_ylabel("belief area (sr)")
     ax.xaxis.get_major_locator().set_params(integer=True)

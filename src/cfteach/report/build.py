@@ -134,7 +134,7 @@ def build_report(
     layouts: LayoutFn | None = None,
     meta: Mapping[str, Any] | None = None,
     sphere_resolution: int = 60,
-    gif_cell_px: int = 36,
+    gif_cell_px: int = 48,
     test_cell_px: int = 36,
     progress: bool | None = None,
 ) -> Path:
