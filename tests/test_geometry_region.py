@@ -360,3 +360,22 @@ def test_reduce_many_matches_region() -> None:
 def test_sphere_area() -> None:
     assert sphere_area(3) == pytest.approx(4 * np.pi)
     assert sphere_area(4) == pytest.approx(2 * np.pi**2)
+
+
+def test_reduce_many_special_sets() -> None:
+    sets = [
+        np.zeros((0, 3), dtype=int),
+        np.array([[0, 0, 0]]),
+        np.array([[1, 0, 0], [-1, 0, 0]]),
+        np.array([[2, 4, 0], [1, 2, 0], [0, 0, 3]]),
+        np.array([[0.5, 0.2, 0.1]]),
+    ]
+    red, areas = reduce_many(sets)
+    assert red[0].shape == (0, 3) and areas[0] == pytest.approx(4 * np.pi)
+    assert red[1].shape == (0, 3) and areas[1] == pytest.approx(4 * np.pi)
+    assert np.array_equal(red[2], infeasible_rows(3)) and areas[2] == 0.0
+    assert {tuple(x) for x in red[3].tolist()} == {(1, 2, 0), (0, 0, 1)}
+    assert areas[3] == pytest.approx(np.pi)
+    assert red[4].dtype == np.float64 and areas[4] == pytest.approx(2 * np.pi)
+    with pytest.raises(ValueError, match="same number of columns"):
+        reduce_many([np.eye(3), np.eye(4)])

@@ -1,10 +1,10 @@
 """A direction strictly inside a cone ``{w : N w >= 0}``, cheaply when possible.
 
-Order of attempts: positive combinations of the normals (exact for integer rows), then a
-few Gilbert (min-norm-point) steps, and only then one small LP. By Gordan's theorem a
+Order of attempts: positive combinations of the normals (exact for integer rows), then
+Wolfe's min-norm-point algorithm, and only then one small LP. By Gordan's theorem a
 strictly interior direction exists iff the region has positive measure; the min-norm point
 of ``conv(unit normals)`` is the centre of the largest inscribed cap, so the LP margin and
-the Gilbert iterate measure the same thing.
+the Wolfe iterate measure the same thing.
 """
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ from scipy.optimize import linprog
 #: sphere exceeds this (radians, via the sine). Regions thinner than this are "empty".
 MARGIN_EPS = 1e-12
 
-_GILBERT_STEPS = 48
 
 
 def margin(unit: np.ndarray, u: np.ndarray) -> float:
@@ -63,31 +62,57 @@ def interior_direction(
     got = _accept(unit, unit.sum(axis=0))
     if got is not None:
         return got
-    got = _gilbert(unit)
+    got = _wolfe(unit)
     if got is not None:
         return got
     return _lp_direction(unit)
 
 
-def _gilbert(unit: np.ndarray) -> np.ndarray | None:
-    """Gilbert's min-norm-point iteration on conv(unit); stop at the first interior iterate."""
-    x = unit.mean(axis=0)
-    for _ in range(_GILBERT_STEPS):
+def _wolfe(unit: np.ndarray, max_iter: int = 200) -> np.ndarray | None:
+    """Wolfe's min-norm-point algorithm on conv(unit rows), stopped at the first iterate
+    that is strictly interior to the region. Returns None when it cannot certify one (the
+    caller then asks the LP, which also settles emptiness)."""
+    k, dim = unit.shape
+    g0 = unit @ unit.mean(axis=0)
+    s_idx = [int(np.argmax(g0))]
+    lam = np.ones(1)
+    x = unit[s_idx[0]].copy()
+    for _ in range(max_iter):
         d = unit @ x
         j = int(np.argmin(d))
-        nx = float(np.sqrt(x @ x))
-        if nx < 1e-13:
+        xx = float(x @ x)
+        if xx < 1e-24:
             return None
-        if d[j] > MARGIN_EPS * nx:
-            return x / nx
-        diff = x - unit[j]
-        denom = float(diff @ diff)
-        if denom == 0.0:
-            return None
-        gamma = min(max(float(x @ diff) / denom, 0.0), 1.0)
-        if gamma == 0.0:
-            return None
-        x = x - gamma * diff
+        if d[j] > MARGIN_EPS * np.sqrt(xx):
+            return x / np.sqrt(xx)
+        if xx - d[j] <= 1e-15 or j in s_idx or len(s_idx) > dim:
+            return None  # optimal (or stalled) without a positive margin
+        s_idx.append(j)
+        lam = np.append(lam, 0.0)
+        for _ in range(dim + 2):  # minor cycles
+            p = unit[s_idx]
+            m = len(s_idx)
+            a = np.zeros((m + 1, m + 1))
+            a[:m, :m] = p @ p.T
+            a[:m, m] = 1.0
+            a[m, :m] = 1.0
+            rhs = np.zeros(m + 1)
+            rhs[m] = 1.0
+            try:
+                mu = np.linalg.solve(a, rhs)[:m]
+            except np.linalg.LinAlgError:
+                return None
+            if np.all(mu > 1e-14):
+                lam = mu
+                break
+            neg = mu <= 1e-14
+            theta = float(np.min(lam[neg] / (lam[neg] - mu[neg])))
+            lam = lam + theta * (mu - lam)
+            keep = lam > 1e-14
+            s_idx = [i for i, kp in zip(s_idx, keep, strict=True) if kp]
+            lam = lam[keep]
+            lam /= lam.sum()
+        x = lam @ unit[s_idx]
     return None
 
 

@@ -25,7 +25,6 @@ _CACHE_SIZE = 65536
 def clear_cache() -> None:
     """Forget all memoised region solutions (for memory or benchmarking)."""
     _CACHE.clear()
-    _RAW_CACHE.clear()
 
 
 def sphere_area(dim: int) -> float:
@@ -65,6 +64,15 @@ class Region:
         self._solved: Any = None
         self._hint: list[np.ndarray] | None = None
         self._unit: np.ndarray | None = None
+
+    @classmethod
+    def _from_canonical(cls, rows: np.ndarray, integral: bool) -> Region:
+        """Wrap rows already in canonical form (internal: skips validation)."""
+        out = cls.__new__(cls)
+        out._dim = int(rows.shape[1])
+        out._rows, out._integral = rows, integral
+        out._solved, out._hint, out._unit = None, None, None
+        return out
 
     @classmethod
     def full(cls, dim: int = 3) -> Region:
@@ -243,29 +251,64 @@ def overlap(a: Region, b: Region) -> float:
     return (a & b).area()
 
 
-_RAW_CACHE: OrderedDict[tuple[Any, ...], tuple[np.ndarray, float]] = OrderedDict()
-
-
 def reduce_many(
     arrays: Iterable[Any] | Sequence[Any], dim: int | None = None
 ) -> tuple[list[np.ndarray], np.ndarray]:
     """Reduce and measure many constraint sets: ``(reduced arrays, areas)``.
 
-    Identical inputs (same bytes) are answered from a cache without even normalising
-    them; identical canonical row sets share one solution through the region cache.
+    Integral sets are canonicalised all at once (one vectorised gcd / de-duplication over
+    the concatenated rows); each distinct canonical set is then solved once (and shared
+    with ``Region`` through the process-wide cache).
     """
+    mats = [as_matrix(a, dim) for a in arrays]
+    if not mats:
+        return [], np.zeros(0)
+    dims = {m.shape[1] for m in mats}
+    if len(dims) != 1:
+        raise ValueError(f"all constraint sets must have the same number of columns, got {dims}")
+    canon = _canonical_batch(mats)
     reduced: list[np.ndarray] = []
-    areas: list[float] = []
-    for arr in arrays:
-        a = np.asarray(arr)
-        key = (a.dtype.str, a.shape, a.tobytes())
-        hit = _RAW_CACHE.get(key)
+    areas = np.empty(len(mats))
+    seen: dict[bytes, tuple[np.ndarray, float]] = {}
+    for i, (rows, integral) in enumerate(canon):
+        key = rows.tobytes() + (b"i" if integral else b"f") + bytes([rows.shape[1]])
+        hit = seen.get(key)
         if hit is None:
-            r = Region(a, dim=dim)
+            r = Region._from_canonical(rows, integral)
             hit = (r.reduced(), r.area())
-            _RAW_CACHE[key] = hit
-            if len(_RAW_CACHE) > _CACHE_SIZE:
-                _RAW_CACHE.popitem(last=False)
+            seen[key] = hit
         reduced.append(hit[0].copy())
-        areas.append(hit[1])
-    return reduced, np.asarray(areas, dtype=np.float64)
+        areas[i] = hit[1]
+    return reduced, areas
+
+
+def _canonical_batch(mats: list[np.ndarray]) -> list[tuple[np.ndarray, bool]]:
+    """canonical_rows for many matrices; vectorised when all are small-integer valued."""
+    dim = mats[0].shape[1]
+    try:
+        big = np.concatenate(mats)
+    except ValueError:
+        return [canonical_rows(m) for m in mats]
+    if big.dtype.kind == "f" and not (
+        np.all(big == np.round(big)) and np.all(np.abs(big) < 2.0**31)
+    ):
+        return [canonical_rows(m) for m in mats]
+    ints = big.astype(np.int64)
+    sizes = np.array([len(m) for m in mats])
+    set_id = np.repeat(np.arange(len(mats)), sizes)
+    nonzero = np.any(ints != 0, axis=1)
+    ints, set_id = ints[nonzero], set_id[nonzero]
+    if len(ints) == 0:
+        return [(np.zeros((0, dim), dtype=np.int64), True) for _ in mats]
+    g = np.gcd.reduce(ints, axis=1)
+    ints = ints // g[:, None]
+    lo = int(ints.min())
+    span = int(ints.max()) - lo + 1
+    if span**dim * len(mats) >= 2**62:
+        return [canonical_rows(m) for m in mats]
+    weights = span ** np.arange(dim - 1, -1, -1, dtype=np.int64)
+    key = set_id * span**dim + (ints - lo) @ weights
+    _, first = np.unique(key, return_index=True)  # sorted by set, then row
+    ints, set_id = ints[first], set_id[first]
+    bounds = np.searchsorted(set_id, np.arange(len(mats) + 1))
+    return [(ints[bounds[i] : bounds[i + 1]], True) for i in range(len(mats))]

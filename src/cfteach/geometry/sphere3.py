@@ -164,9 +164,9 @@ def _plane_basis(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal e1, e2 with e1 x e2 = u."""
     a = np.zeros(3)
     a[int(np.argmin(np.abs(u)))] = 1.0
-    e1 = np.cross(a, u)
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(u, e1)
+    e1 = cross(a, u)
+    e1 /= np.sqrt(e1 @ e1)
+    return e1, cross(u, e1)
 
 
 def _project(unit: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -207,17 +207,14 @@ def _line_extremes(centred: np.ndarray) -> np.ndarray:
 
 def _drop_flat_vertices(rows: np.ndarray, order: np.ndarray) -> np.ndarray:
     """Remove hull vertices whose exact turn det(prev, cur, next) is not positive."""
-    order = list(order)
-    changed = True
-    while changed and len(order) > 2:
-        changed = False
-        for idx in range(len(order)):
-            a, b, c = order[idx - 1], order[idx], order[(idx + 1) % len(order)]
-            if int(np.cross(rows[a], rows[b]) @ rows[c]) <= 0:
-                del order[idx]
-                changed = True
-                break
-    return np.asarray(order, dtype=np.intp)
+    while len(order) > 2:
+        p = rows[order].astype(np.float64)  # small ints: exact
+        turn = np.einsum("ij,ij->i", cross(np.roll(p, 1, axis=0), p), np.roll(p, -1, axis=0))
+        flat = turn <= 0
+        if not flat.any():
+            break
+        order = np.delete(order, int(np.argmax(flat)))
+    return order
 
 
 def polygon_vertices(unit_ordered: np.ndarray) -> np.ndarray:
