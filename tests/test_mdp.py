@@ -272,8 +272,9 @@ def test_reference_shortcut_matches_full_reference_sweeps() -> None:
     W = rng.normal(size=(10, 3))
     W[:5, 2] = -np.abs(W[:5, 2])
     vals = value_iteration(b, W, method="reference")
-    R = np.einsum("esaf,mf->emsa", b.features, W).reshape(-1, b.S, b.A)
-    nxt = np.broadcast_to(b.next_state[:, None], (b.E, len(W), b.S, b.A)).reshape(-1, b.S, b.A)
+    R = np.einsum("esaf,mf->emas", b.features, W).reshape(-1, b.A, b.S)
+    nxt = np.broadcast_to(b.next_state[:, None].transpose(0, 1, 3, 2),
+                          (b.E, len(W), b.A, b.S)).reshape(-1, b.A, b.S)
     v, bnd, sw = _solve_reference(R, nxt)
     assert np.array_equal(vals.bounded.ravel(), bnd)
     assert np.array_equal(vals.sweeps.ravel(), sw)

@@ -125,10 +125,12 @@ def value_iteration(
         for e0, m0 in blocks:
             e1, m1 = min(e_n, e0 + ec), min(m_n, m0 + mc)
             ne, nm = e1 - e0, m1 - m0
-            R = np.einsum("esaf,mf->emsa", b.features[e0:e1], W[m0:m1]).reshape(
-                ne * nm, s_n, a_n)
-            nxt = np.broadcast_to(b.next_state[e0:e1, None], (ne, nm, s_n, a_n)).reshape(
-                ne * nm, s_n, a_n)
+            # Solvers work in [pair, action, state] layout: the max over actions is then an
+            # element-wise max of contiguous rows, ~3x faster than reducing a short last axis.
+            R = np.ascontiguousarray(np.einsum("esaf,mf->emas", b.features[e0:e1], W[m0:m1])
+                                     ).reshape(ne * nm, a_n, s_n)
+            nxt = np.broadcast_to(b.next_state[e0:e1, None].transpose(0, 1, 3, 2),
+                                  (ne, nm, a_n, s_n)).reshape(ne * nm, a_n, s_n)
             valid = np.broadcast_to(b.valid[e0:e1, None], (ne, nm, s_n)).reshape(ne * nm, s_n)
             n_valid = np.broadcast_to(b.n_states[e0:e1, None], (ne, nm)).reshape(-1)
             v, bnd, sw = _solve_exact(R, nxt, valid, n_valid)
@@ -140,7 +142,7 @@ def value_iteration(
                 if ok.size:
                     v[ok], bnd[ok], sw[ok] = _solve_reference(R[ok], nxt[ok])
             q = R + _gather(v, nxt)
-            Q[e0:e1, m0:m1] = q.reshape(ne, nm, s_n, a_n)
+            Q[e0:e1, m0:m1] = q.reshape(ne, nm, a_n, s_n).transpose(0, 1, 3, 2)
             V[e0:e1, m0:m1] = v.reshape(ne, nm, s_n)
             bounded[e0:e1, m0:m1] = bnd.reshape(ne, nm)
             sweeps[e0:e1, m0:m1] = sw.reshape(ne, nm)
@@ -149,15 +151,15 @@ def value_iteration(
 
 
 def _gather(v: np.ndarray, nxt: np.ndarray) -> np.ndarray:
-    """v[p, nxt[p, s, a]] for every p, s, a."""
+    """v[p, nxt[p, ...]] for every pair p."""
     p, s = v.shape
     flat = nxt + (np.arange(p, dtype=nxt.dtype) * s)[:, None, None]
     return v.ravel()[flat]
 
 
 def _solve_reference(R: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Spec §3: V0 = 0, stop at max |dV| <= 1e-25, at most 1000 sweeps."""
-    p_n, s_n, _ = R.shape
+    """Spec §3: V0 = 0, stop at max |dV| <= 1e-25, at most 1000 sweeps. R, nxt: [P, A, S]."""
+    p_n, _, s_n = R.shape
     V = np.zeros((p_n, s_n))
     sweeps = np.full(p_n, REFERENCE_MAX_SWEEPS, dtype=np.int64)
     act = np.arange(p_n)
@@ -167,7 +169,7 @@ def _solve_reference(R: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, ...]:
     k = 0
     while act.size and k < REFERENCE_MAX_SWEEPS:
         k += 1
-        Vn = (Ra + Va.ravel()[flat]).max(axis=-1)
+        Vn = (Ra + Va.ravel()[flat]).max(axis=1)
         delta = np.abs(Vn - Va).max(axis=-1)
         Va = Vn
         first = np.where((first == 0) & (delta <= REFERENCE_TOL), k, first)
@@ -186,14 +188,14 @@ def _solve_reference(R: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, ...]:
 
 def _solve_exact(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
                  n_valid: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Bellman-Ford longest paths to the terminal with positive-cycle detection."""
-    p_n, s_n, _ = R.shape
+    """Bellman-Ford longest paths to the terminal with positive-cycle detection (R: [P, A, S])."""
+    p_n, _, s_n = R.shape
     V = np.where(valid, -np.inf, 0.0)
     bounded = np.ones(p_n, dtype=bool)
     sweeps = np.zeros(p_n, dtype=np.int64)
-    vmask = valid[:, :, None]
+    vmask = valid[:, None, :]
     # A positive-reward self-loop (e.g. a no-op with positive reward) is a positive cycle.
-    self_loop = nxt == np.arange(s_n)[None, :, None]
+    self_loop = nxt == np.arange(s_n)[None, None, :]
     pos_loop = (self_loop & vmask & (R > 0)).any(axis=(1, 2))
     bounded[pos_loop] = False
     # No simple path to the terminal can earn more than n * (largest reward).
@@ -211,7 +213,7 @@ def _solve_exact(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
     while act.size:
         k += 1
         Qa = Ra + Va.ravel()[flat]
-        Vn = Qa.max(axis=-1)
+        Vn = Qa.max(axis=1)
         with np.errstate(invalid="ignore"):
             gain = Vn - Va
             changed = (gain > _EXACT_REL_TOL * np.maximum(1.0, np.abs(Vn))).any(axis=-1)
@@ -249,10 +251,10 @@ def _greedy_has_positive_cycle(Q: np.ndarray, R: np.ndarray, nxt: np.ndarray) ->
     state, a node on the cycle it ends in, and the smallest node of that cycle as its label;
     summing rewards per label gives every cycle's total.
     """
-    p_n, s_n, _ = Q.shape
-    pi = Q.argmax(axis=-1)[..., None]
-    f = np.take_along_axis(nxt, pi, axis=-1)[..., 0]  # [P, S] local successor
-    g = np.take_along_axis(R, pi, axis=-1)[..., 0]  # [P, S] reward
+    p_n, _, s_n = Q.shape
+    pi = Q.argmax(axis=1)[:, None, :]
+    f = np.take_along_axis(nxt, pi, axis=1)[:, 0]  # [P, S] local successor
+    g = np.take_along_axis(R, pi, axis=1)[:, 0]  # [P, S] reward
     off = (np.arange(p_n) * s_n)[:, None]
     jump = (f + off).ravel()  # global index after 2^j steps
     low = np.minimum(np.arange(p_n * s_n), jump)  # smallest node seen in 2^j + 1 steps
