@@ -9,7 +9,7 @@ from __future__ import annotations
 import random
 
 
-def test_order(seed: int, domain: str, n: int) -> list[int]:
+def shuffled_tests(seed: int, domain: str, n: int) -> list[int]:
     """Shuffled test positions for one domain (seeded per session, so it is reproducible)."""
     order = list(range(n))
     random.Random(f"{seed}:{domain}").shuffle(order)
@@ -24,7 +24,7 @@ def build_steps(study: dict, domain_order: list[str], test_set: int, seed: int) 
         steps += [{"kind": "domain_intro", **base}, {"kind": "demos", **base},
                   {"kind": "survey", **base}]
         n = len(study["tests"][dom][test_set])
-        for trial, t in enumerate(test_order(seed, dom, n), start=1):
+        for trial, t in enumerate(shuffled_tests(seed, dom, n), start=1):
             steps.append({"kind": "test", **base, "trial": trial, "test_index": t})
         steps.append({"kind": "feedback", **base, "last": pos == len(domain_order)})
     steps += [{"kind": "demographics"}, {"kind": "complete"}]
