@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -123,25 +124,41 @@ def analyze(
     config: AnalysisConfig | None = None,
     *,
     note: str | None = None,
+    progress: bool | None = None,
 ) -> dict[str, Any]:
     """Analyse the study export in `export_dir`; write results.json, report.md/.html and
     figures/ into `out_dir`. Returns the results dict (the content of results.json).
-    `note` (e.g. how a simulated export was made) is printed under the report's title."""
+
+    `note` (e.g. how a simulated export was made) is printed under the report's title.
+    `progress`: a tqdm bar on stderr (None: only when stderr is a terminal).
+    """
+    from tqdm import tqdm
+
     cfg = config or AnalysisConfig()
-    export = load_export(export_dir)
-    results, frames = compute_results(export, cfg, str(export_dir), note)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    figures: dict[str, list[str]] = {}
-    if cfg.figures:
-        from cfteach.analysis.figures import make_figures
+    disable = None if progress is None else not progress
+    with tqdm(total=4, desc="analyze", unit="step", file=sys.stderr, disable=disable) as bar:
+        bar.set_postfix_str("load")
+        export = load_export(export_dir)
+        bar.update()
+        bar.set_postfix_str("statistics")
+        results, frames = compute_results(export, cfg, str(export_dir), note)
+        bar.update()
+        out.mkdir(parents=True, exist_ok=True)
+        figures: dict[str, list[str]] = {}
+        bar.set_postfix_str("figures")
+        if cfg.figures:
+            from cfteach.analysis.figures import make_figures
 
-        figures = make_figures(frames, results, out / "figures")
-    results["figures"] = {k: [f"figures/{n}" for n in v] for k, v in figures.items()}
-    (out / "results.json").write_text(
-        json.dumps(results, indent=2, allow_nan=False) + "\n", encoding="utf-8"
-    )
-    from cfteach.analysis.report import write_report
+            figures = make_figures(frames, results, out / "figures")
+        bar.update()
+        bar.set_postfix_str("report")
+        results["figures"] = {k: [f"figures/{n}" for n in v] for k, v in figures.items()}
+        (out / "results.json").write_text(
+            json.dumps(results, indent=2, allow_nan=False) + "\n", encoding="utf-8"
+        )
+        from cfteach.analysis.report import write_report
 
-    write_report(results, figures, out)
+        write_report(results, figures, out)
+        bar.update()
     return results
