@@ -312,11 +312,11 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
         )
     else:
         doc.p("No participant was excluded.")
-    doc.p(
-        "Rules and thresholds: "
-        + ", ".join(f"{k} = {v}" for k, v in results["config"]["exclusions"].items())
-        + "."
-    )
+    rules = {
+        k: (f"{len(v)} id(s)" if v else "none") if k == "manual" else v
+        for k, v in results["config"]["exclusions"].items()
+    }
+    doc.p("Rules and thresholds: " + ", ".join(f"{k} = {v}" for k, v in rules.items()) + ".")
 
     icc = results["icc"]
     doc.h(2, "Consistency across domains (ICC)")
