@@ -70,3 +70,18 @@ def test_bad_arguments() -> None:
         sample_reference_grid(np.eye(4), m=8)
     with pytest.raises(ValueError, match="at least 1"):
         sample_reference_grid([[0, 0, -1]], m=0)
+
+
+def test_thin_region_stops_at_max_density() -> None:
+    # a band 5e-4 rad wide along a tilted great circle: density 5 leaves 3 fine-grid points,
+    # density 12 enough for 8
+    t = 5e-4
+    a = np.array([0.0, 1.0, 1.0]) / np.sqrt(2)
+    c = np.cross([1.0, 0.0, 0.0], a)
+    rows = np.array([a, -(np.cos(t) * a - np.sin(t) * c), [1.0, 0.0, 0.0]])
+    few = sample_reference_grid(rows, m=8, max_density=5)
+    assert 0 < len(few) < 8
+    assert np.all(Region(rows).contains(few, tol=1e-12))
+    full = sample_reference_grid(rows, m=8, max_density=20)
+    assert len(full) == 8
+    assert np.all(Region(rows).contains(full, tol=1e-12))

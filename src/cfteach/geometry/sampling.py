@@ -19,7 +19,8 @@ from .region import Region
 
 _COARSE = 1000
 _START_DENSITY = 5
-_MAX_DENSITY = 10_000
+#: Stop refining the fine grid at this density (the reference would loop on forever).
+MAX_DENSITY = 400
 
 
 @lru_cache(maxsize=1)
@@ -51,11 +52,15 @@ def greedy_k_centres(points: np.ndarray, m: int) -> np.ndarray:
     return np.asarray(chosen, dtype=np.intp)
 
 
-def sample_reference_grid(normals: Any, m: int = 8) -> np.ndarray:
+def sample_reference_grid(
+    normals: Any, m: int = 8, *, max_density: int = MAX_DENSITY
+) -> np.ndarray:
     """The reference's deterministic human-model sampler (3 features only), ``[m, 3]``.
 
     Returns shape ``(0, 3)`` when no coarse grid point satisfies the constraints (the
-    reference then stops teaching).
+    reference then stops teaching). If the region is so thin that even the fine grid of
+    ``max_density`` holds fewer than ``m`` points, those few points are returned (the
+    reference would refine forever).
     """
     cons = as_matrix(normals, dim=3 if np.size(normals) == 0 else None).astype(np.float64)
     if cons.shape[1] != 3:
@@ -71,7 +76,8 @@ def sample_reference_grid(normals: Any, m: int = 8) -> np.ndarray:
     u_lo, u_hi = azi.min() / (2 * np.pi), azi.max() / (2 * np.pi)
     v_lo, v_hi = (1 - np.cos(ele.min())) / 2, (1 - np.cos(ele.max())) / 2
     density = _START_DENSITY
-    while density <= _MAX_DENSITY:
+    fine = np.zeros((0, 3))
+    while density <= max(max_density, _START_DENSITY):
         theta = 2 * np.pi * np.linspace(u_lo, u_hi, density * m)
         phi = np.arccos(1 - 2 * np.linspace(v_lo, v_hi, density * m))
         tt, pp = np.meshgrid(theta, phi)  # rows = phi (outer index)
@@ -83,9 +89,7 @@ def sample_reference_grid(normals: Any, m: int = 8) -> np.ndarray:
         if len(fine) > m:
             return fine[greedy_k_centres(fine, m)]
         density += 1
-    raise RuntimeError(
-        f"the reference grid sampler found fewer than {m} points at density {_MAX_DENSITY}"
-    )
+    return fine
 
 
 def sample_uniform(
