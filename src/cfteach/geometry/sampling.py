@@ -80,9 +80,14 @@ def sample_reference_grid(
     while density <= max(max_density, _START_DENSITY):
         theta = 2 * np.pi * np.linspace(u_lo, u_hi, density * m)
         phi = np.arccos(1 - 2 * np.linspace(v_lo, v_hi, density * m))
-        tt, pp = np.meshgrid(theta, phi)  # rows = phi (outer index)
-        tt, pp = tt.flatten(), pp.flatten()
-        fine = np.stack([np.cos(tt) * np.sin(pp), np.sin(tt) * np.sin(pp), np.cos(pp)], axis=1)
+        # meshgrid(theta, phi) flattened row-major (phi outer); the trigonometry is done on
+        # the axes only, the products are the same floats as on the full mesh
+        n = len(theta)
+        fine = np.empty((n, n, 3))
+        fine[..., 0] = np.sin(phi)[:, None] * np.cos(theta)[None, :]
+        fine[..., 1] = np.sin(phi)[:, None] * np.sin(theta)[None, :]
+        fine[..., 2] = np.cos(phi)[:, None]
+        fine = fine.reshape(-1, 3)
         fine = fine[_feasible(fine, cons)]
         if len(fine) == m:
             return fine
