@@ -27,8 +27,12 @@ def make_engine(url: str) -> Engine:
         @event.listens_for(engine, "begin")
         def _begin(conn):  # noqa: ANN001
             # Take the write lock up front: read-then-write transactions (assignment,
-            # step advance) cannot interleave, even across processes.
-            conn.exec_driver_sql("BEGIN IMMEDIATE")
+            # step advance) cannot interleave, even across processes. Read-only work
+            # (engine.execution_options(readonly=True)) takes no lock.
+            if conn.get_execution_options().get("readonly"):
+                conn.exec_driver_sql("BEGIN")
+            else:
+                conn.exec_driver_sql("BEGIN IMMEDIATE")
 
         return engine
     if url.startswith("postgresql"):

@@ -96,14 +96,14 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
                              "participant_id": row.participant_id})
 
     @app.get("/api/state")
-    def state(x_session_token: str | None = Header(default=None)) -> dict:
-        return service.state(x_session_token)
+    def state(x_session_token: str | None = Header(default=None)) -> JSONResponse:
+        return JSONResponse(service.state(x_session_token))
 
     @app.post("/api/event")
     def event(req: schemas.EventRequest, request: Request,
-              x_session_token: str | None = Header(default=None)) -> dict:
+              x_session_token: str | None = Header(default=None)) -> JSONResponse:
         _json_only(request)
-        return service.post_event(x_session_token, req)
+        return JSONResponse(service.post_event(x_session_token, req))
 
     def _check_researcher(given: str | None) -> None:
         if not given or not hmac.compare_digest(given, token):

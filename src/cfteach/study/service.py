@@ -42,6 +42,8 @@ class StudyService:
         self.engine = engine
         self.study = study
         self.Session = sessionmaker(engine, expire_on_commit=False)
+        self.ReadSession = sessionmaker(engine.execution_options(readonly=True),
+                                        expire_on_commit=False)
         self._lock = threading.Lock()
         self._rng = random.Random(seed)
         self._pg = engine.dialect.name == "postgresql"
@@ -110,7 +112,7 @@ class StudyService:
     # -- reading the current page ---------------------------------------------------------
 
     def state(self, token: str | None) -> dict:
-        with self.Session() as db, db.begin():
+        with self.ReadSession() as db, db.begin():
             row = self._session(db, token)
             return self._view(db, row)
 
@@ -174,15 +176,17 @@ class StudyService:
         with self.Session() as db:
             try:
                 with db.begin():
-                    result = self._apply(db, token, req)
+                    row, result = self._apply(db, token, req)
+                    db.flush()
+                    view = self._view(db, row)
             except IntegrityError as e:
                 raise ApiError(409, "duplicate_event",
                                f"event {req.event_id} was already stored") from e
-            with db.begin():
-                row = self._session(db, token)
-                return {"ok": True, **result, "state": self._view(db, row)}
+            # Only now, after the commit, is the event acknowledged.
+            return {"ok": True, **result, "state": view}
 
-    def _apply(self, db: DBSession, token: str | None, req: schemas.EventRequest) -> dict:
+    def _apply(self, db: DBSession, token: str | None,
+               req: schemas.EventRequest) -> tuple[Session, dict]:
         row = self._session(db, token, lock=True)
         dup = db.scalar(select(Event.id).where(Event.session_pk == row.id,
                                                Event.event_id == req.event_id))
@@ -240,7 +244,7 @@ class StudyService:
             if steps[row.step_index]["kind"] == "complete":
                 row.status = "completed"
                 row.completed_at = now
-        return result
+        return row, result
 
     def _practice(self, row: Session, p: schemas.PracticeAttempt) -> dict:
         prac = self.study["practice"]
@@ -279,7 +283,7 @@ class StudyService:
     # -- researcher -----------------------------------------------------------------------
 
     def progress(self) -> dict:
-        with self.Session() as db, db.begin():
+        with self.ReadSession() as db, db.begin():
             now = utcnow()
             counts = cell_counts(db, self.study, now)
             done = dict.fromkeys(all_cells(self.study), 0)
