@@ -79,9 +79,11 @@ def canonical_rows(arr: np.ndarray) -> tuple[np.ndarray, bool]:
     unit = f[keep] / norms[keep, None]
     if len(unit) > 1:
         keys = np.round(unit, FLOAT_DEDUP_DECIMALS) + 0.0  # + 0.0 folds -0.0 into 0.0
-        _, first = np.unique(keys, axis=0, return_index=True)
-        unit = unit[np.sort(first)]
-        unit = unit[np.lexsort(unit.T[::-1])]
+        order = np.lexsort(keys.T[::-1])  # first column most significant
+        ks = keys[order]
+        keep = np.ones(len(ks), dtype=bool)
+        keep[1:] = (ks[1:] != ks[:-1]).any(axis=1)
+        unit = unit[order[keep]]
     return unit, False
 
 
