@@ -47,7 +47,13 @@ def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
     fresh = json.loads((tmp_path / "results.json").read_text(encoding="utf-8"))
     for key in ("participants", "exclusions", "icc", "h1", "mixed", "likert", "exploratory"):
         assert fresh[key] == committed[key], key
-    assert set(committed["figures"]) == {"interaction", "likert", "confidence"}
+    assert set(committed["figures"]) == {
+        "difficulty",
+        "interaction",
+        "likert",
+        "confidence",
+        "exploratory",
+    }
     for files in committed["figures"].values():
         for f in files:
             assert (EXAMPLE / f).exists()

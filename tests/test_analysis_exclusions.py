@@ -213,3 +213,37 @@ def test_bad_config() -> None:
         ExclusionConfig(aggregate_sd=-1)
     with pytest.raises(ValueError, match="expected_tests must be >= 1"):
         ExclusionConfig(expected_tests=0)
+
+
+def _timed(ex: StudyExport, minutes: list[float], attempts: list[int]) -> StudyExport:
+    parts = ex.participants.copy()
+    start = pd.Timestamp("2026-01-12T14:00:00Z")
+    parts["started_at"] = [start.isoformat()] * len(parts)
+    parts["completed_at"] = [(start + pd.Timedelta(minutes=m)).isoformat() for m in minutes]
+    parts["practice_attempts"] = attempts
+    return StudyExport(parts, ex.tests, ex.likert, ex.demo_views)
+
+
+def test_quality_flags_and_optional_speed_rule() -> None:
+    from cfteach.analysis.exclusions import quality_flags
+
+    opt, rew = _clean(4)
+    ex = _timed(make_export(opt, rew), [25.0, 9.5, 30.0, 4.0], [1, 3, 2, 1])
+    flags = quality_flags(ex.participants)
+    assert sorted(zip(flags.participant_id, flags.rule, strict=True)) == [
+        ("p01", "practice_attempts"),
+        ("p01", "short_session"),
+        ("p03", "short_session"),
+    ]
+    assert "9.5 min < 10 min" in set(flags.reason)
+    # flags are not exclusions ...
+    kept, table = apply_exclusions(ex, ExclusionConfig(aggregate_sd=None, item_sd=None))
+    assert table.empty
+    # ... unless min_minutes is set
+    kept, table = apply_exclusions(
+        ex, ExclusionConfig(aggregate_sd=None, item_sd=None, min_minutes=5)
+    )
+    assert table[["participant_id", "rule"]].values.tolist() == [["p03", "too_fast"]]
+    assert table.reason.iloc[0] == "finished in 4.0 min < 5 min"
+    with pytest.raises(ValueError, match="min_minutes must be positive"):
+        ExclusionConfig(min_minutes=0)

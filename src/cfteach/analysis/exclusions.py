@@ -30,17 +30,45 @@ class ExclusionConfig:
     item_counts_among_nonzero: bool = True  # authors: count stats over participants with >= 1
     item_means_exclude_flagged: bool = True  # authors: item means without already-flagged IDs
     manual: dict[str, str] = field(default_factory=dict)  # participant_id -> reason
+    min_minutes: float | None = None  # exclude completions faster than this (off by default)
 
     def __post_init__(self) -> None:
         for name in ("aggregate_sd", "item_sd", "item_count_sd"):
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise ValueError(f"{name} must be positive or None, got {v}")
+        if self.min_minutes is not None and not self.min_minutes > 0:
+            raise ValueError(f"min_minutes must be positive or None, got {self.min_minutes}")
         if self.expected_tests is not None and self.expected_tests < 1:
             raise ValueError(f"expected_tests must be >= 1, got {self.expected_tests}")
 
 
 EXCLUSION_COLUMNS = ["participant_id", "condition", "rule", "reason"]
+
+
+def session_minutes(participants: pd.DataFrame) -> pd.Series:
+    """Minutes from `started_at` to `completed_at` (NaN when either is missing)."""
+    start = pd.to_datetime(participants["started_at"], utc=True, errors="coerce", format="ISO8601")
+    end = pd.to_datetime(participants["completed_at"], utc=True, errors="coerce", format="ISO8601")
+    return (end - start).dt.total_seconds() / 60.0
+
+
+def quality_flags(
+    participants: pd.DataFrame, *, min_minutes: float = 10.0, practice_attempts: int = 3
+) -> pd.DataFrame:
+    """The authors' soft data-quality flags, reported (not excluded): sessions shorter than
+    `min_minutes`, and participants who needed at least `practice_attempts` practice tries."""
+    if not {"started_at", "completed_at"} <= set(participants.columns):
+        return pd.DataFrame(columns=EXCLUSION_COLUMNS)
+    minutes = session_minutes(participants)
+    rows = []
+    for i, p in participants.iterrows():
+        if pd.notna(minutes[i]) and minutes[i] < min_minutes:
+            rows.append(_row(p, "short_session", f"{minutes[i]:.1f} min < {min_minutes:g} min"))
+        tries = p.get("practice_attempts")
+        if pd.notna(tries) and int(tries) >= practice_attempts:
+            rows.append(_row(p, "practice_attempts", f"{int(tries)} practice attempts"))
+    return pd.DataFrame(rows, columns=EXCLUSION_COLUMNS)
 
 
 def _row(p: pd.Series, rule: str, reason: str) -> dict[str, str]:
@@ -139,6 +167,13 @@ def apply_exclusions(
             remaining["participant_id"].isin(cfg.manual),
             "manual",
             lambda p: cfg.manual[p["participant_id"]],
+        )
+    if cfg.min_minutes is not None:
+        minutes = session_minutes(remaining)
+        drop(
+            minutes < cfg.min_minutes,
+            "too_fast",
+            lambda p: f"finished in {minutes[p.name]:.1f} min < {cfg.min_minutes:g} min",
         )
     if cfg.require_complete_data:
         ids = remaining["participant_id"]

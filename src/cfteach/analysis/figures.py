@@ -179,10 +179,74 @@ def confidence_plot(frames: Frames, spearman: dict[str, Any], out_dir: Path) -> 
     return _save(fig, out_dir, "confidence")
 
 
+def _stars(p: float | None) -> str:
+    if p is None:
+        return "n/a"
+    return "***" if p < 0.001 else "**" if p < 0.01 else "*" if p < 0.05 else "n.s."
+
+
+def difficulty_plot(results: dict[str, Any], out_dir: Path) -> list[str]:
+    """H1: mean proportion optimal per difficulty (95% CI) with the paired post hocs."""
+    rm = results["h1"]["rm_anova"]
+    ph = results["h1"]["posthoc"]["paired"]
+    fig, ax = plt.subplots(figsize=(5.2, 4.2))
+    x = np.arange(len(DIFFICULTIES))
+    m = [rm["means"][d]["mean"] for d in DIFFICULTIES]
+    ci = [rm["means"][d]["ci95"] for d in DIFFICULTIES]
+    m_arr = np.array([np.nan if v is None else v for v in m], dtype=float)
+    lo = np.array([np.nan if c[0] is None else c[0] for c in ci], dtype=float)
+    hi = np.array([np.nan if c[1] is None else c[1] for c in ci], dtype=float)
+    ax.bar(x, m_arr, color=["#8fbc8f", "#e9c46a", "#e76f51"], edgecolor="k", width=0.6)
+    ax.errorbar(x, m_arr, yerr=[m_arr - lo, hi - m_arr], fmt="none", ecolor="k", capsize=4)
+    top = np.nanmax(hi) if np.isfinite(hi).any() else 1.0
+    pairs = {(r["A"], r["B"]): r["p_corr"] for r in ph["rows"]}
+    for k, (a, b) in enumerate([("low", "medium"), ("medium", "high"), ("low", "high")]):
+        p = pairs.get((a, b), pairs.get((b, a)))
+        i, j = DIFFICULTIES.index(a), DIFFICULTIES.index(b)
+        y = top + 0.06 + 0.08 * k
+        ax.plot([i, i, j, j], [y - 0.02, y, y, y - 0.02], color="k", lw=0.8)
+        ax.text((i + j) / 2, y + 0.005, _stars(p), ha="center", va="bottom", fontsize=9)
+    ax.set_xticks(x, DIFF_LABELS)
+    ax.set_xlabel("Test difficulty")
+    ax.set_ylabel("Proportion optimal (mean, 95% CI)")
+    ax.set_ylim(0, max(1.0, top + 0.35))
+    ax.set_title(f"N = {rm['n_participants']}; paired t-tests, {ph['padjust']}", fontsize=9)
+    fig.tight_layout()
+    return _save(fig, out_dir, "difficulty")
+
+
+def exploratory_plot(frames: Frames, out_dir: Path) -> list[str]:
+    """Per-participant demonstration plays and test time per optimal step, by condition."""
+    s = frames.subjects
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    panels = [
+        ("plays_completed", "Plays per demonstration"),
+        ("time_norm", "Test time per optimal step (s)"),
+    ]
+    rng = np.random.default_rng(0)  # horizontal jitter only
+    for ax, (col, label) in zip(axes, panels, strict=True):
+        data = [
+            s.loc[s["condition"].astype(str) == c, col].dropna().to_numpy(dtype=float)
+            for c in CONDITIONS
+        ]
+        ax.boxplot(data, positions=range(len(CONDITIONS)), widths=0.5, showfliers=False)
+        for i, (c, d) in enumerate(zip(CONDITIONS, data, strict=True)):
+            ax.scatter(
+                i + rng.uniform(-0.15, 0.15, len(d)), d, s=8, alpha=0.5, color=COND_COLORS[c]
+            )
+        ax.set_xticks(range(len(CONDITIONS)), list(CONDITIONS), fontsize=8)
+        ax.set_ylabel(label)
+        ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, out_dir, "exploratory")
+
+
 def make_figures(frames: Frames, results: dict[str, Any], out_dir: Path) -> dict[str, list[str]]:
     """All figures into `out_dir`; returns figure name -> file names."""
     return {
+        "difficulty": difficulty_plot(results, out_dir),
         "interaction": interaction_plot(results["mixed"], out_dir),
         "likert": likert_bars(frames, out_dir),
         "confidence": confidence_plot(frames, results["h1"]["spearman"], out_dir),
+        "exploratory": exploratory_plot(frames, out_dir),
     }

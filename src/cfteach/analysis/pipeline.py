@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from cfteach.analysis.aggregate import Frames, build_frames
-from cfteach.analysis.exclusions import ExclusionConfig, apply_exclusions
+from cfteach.analysis.exclusions import ExclusionConfig, apply_exclusions, quality_flags
 from cfteach.analysis.io import CONDITIONS, StudyExport, load_export
 
 PADJUST_METHODS = ("holm", "bonf", "sidak", "fdr_bh", "fdr_by", "none")
@@ -99,6 +99,7 @@ def compute_results(
             "conditions_missing": [c for c in CONDITIONS if not by_cond.get(c, 0)],
         },
         "exclusions": excluded.to_dict(orient="records"),
+        "quality_flags": quality_flags(kept.participants).to_dict(orient="records"),
         **results,
     }
     return _jsonable(summary), frames

@@ -312,6 +312,16 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
         )
     else:
         doc.p("No participant was excluded.")
+    flags = results.get("quality_flags") or []
+    if flags:
+        doc.p(
+            "Data-quality flags among the retained participants (reported, not excluded; "
+            "the authors' soft flags):"
+        )
+        doc.table(
+            ["participant_id", "condition", "flag", "detail"],
+            [[f["participant_id"], f["condition"], f["rule"], f["reason"]] for f in flags],
+        )
     rules = {
         k: (f"{len(v)} id(s)" if v else "none") if k == "manual" else v
         for k, v in results["config"]["exclusions"].items()
@@ -404,6 +414,8 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
                 for r in at["rows"]
             ],
         )
+    if "difficulty" in figures:
+        doc.img(f"figures/{figures['difficulty'][0]}", "Proportion optimal by test difficulty")
     sp = h1["spearman"]
     doc.p(
         "Spearman's rank correlation of confidence (median per participant × difficulty) "
@@ -461,6 +473,8 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
         )
         doc.p(f"**{res['label']}** (per-participant mean; one-way ANOVA, N = {n}):")
         doc.table(["Factor", "Test", "ηp²", "Means"], rows)
+    if "exploratory" in figures:
+        doc.img(f"figures/{figures['exploratory'][0]}", "Exploratory measures by condition")
     return doc
 
 

@@ -125,7 +125,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
         cf, fs = int(cond in CF_CONDITIONS), int(cond in FS_CONDITIONS)
         pid = _hex(rng, 12)
         started = t0 + timedelta(minutes=7 * arrival + float(rng.uniform(0, 5)))
-        duration = timedelta(minutes=float(rng.uniform(14, 30)))
+        duration = timedelta(minutes=float(rng.uniform(8, 30)))
         status = "completed" if kind == "preview" else kind
         parts.append(
             {
@@ -144,7 +144,9 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                 "completed_at": (started + duration).isoformat().replace("+00:00", "Z")
                 if status == "completed"
                 else None,
-                "practice_attempts": 3 if kind == "screened_out" else int(rng.integers(1, 3)),
+                "practice_attempts": 3
+                if kind == "screened_out"
+                else int(rng.choice([1, 2, 3], p=[0.7, 0.22, 0.08])),
                 "age": int(np.clip(round(rng.normal(28.4, 9.5)), 18, 69)),
                 "gender": rng.choice(["male", "female", "non-binary"], p=[0.67, 0.32, 0.01]),
                 "education": rng.choice(["high school", "bachelor", "master", "doctorate"]),

@@ -94,6 +94,14 @@ def analyze(
             rich_help_panel=_EXC,
         ),
     ] = None,
+    min_minutes: Annotated[
+        float | None,
+        typer.Option(
+            help="Exclude sessions completed faster than this many minutes (default: off; "
+            "shorter than 10 min is always flagged in the report).",
+            rich_help_panel=_EXC,
+        ),
+    ] = None,
     exclude_file: Annotated[
         Path | None,
         typer.Option(
@@ -177,6 +185,7 @@ def analyze(
             item_count_sd=item_count_sd or None,
             item_counts_among_nonzero=not counts_among_all,
             manual=_read_manual(exclude_file) if exclude_file else {},
+            min_minutes=min_minutes,
         )
         cfg = AnalysisConfig(
             exclusions=excl,
