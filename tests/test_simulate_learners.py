@@ -145,3 +145,22 @@ def test_bad_input_is_named() -> None:
     with pytest.raises(ValueError, match="at least one learner"):
         Learners(dom, "irl", 0)
     assert set(LEARNER_MODELS) == {"counterfactual", "irl", "noisy"}
+
+
+def test_more_than_three_features_end_to_end() -> None:
+    from cfteach.domains.random import random_gridworld
+
+    dom = random_gridworld(6, 6, 5, 16, 3)
+    b = compile_domain(dom)
+    # informative demos: long ones (the robot detours around costly cells)
+    cands = [(e, s) for e in range(16) for s in range(len(b.states[e]))]
+    lengths = {c: len(make_demo(dom, *c)["actions"]) for c in cands[::7]}
+    picks = sorted(lengths, key=lambda c: -lengths[c])[:4]
+    learners = Learners(dom, "counterfactual", 4, rng=0)
+    learners.teach([make_demo(dom, e, s) for e, s in picks])
+    assert learners.contains(dom.weights).all()
+    area, se = learners.belief_area_estimates(n_samples=4000)
+    half_sphere = 8 * np.pi ** 2 / 3 / 2  # area of S^4 is 8 pi^2 / 3
+    assert np.all(area <= half_sphere * 1.01) and np.all(se >= 0)
+    got = learners.answer([make_demo(dom, e, s) for e, s in cands[1::9][:6]])
+    assert got["correct"].shape == (4, 6) and got["finished"].all()

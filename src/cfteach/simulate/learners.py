@@ -43,6 +43,8 @@ from cfteach.simulate.scoring import score_answers
 
 #: How often a learner redraws a weight sample that has no finite plan in an environment.
 MAX_REDRAWS = 20
+#: Weight samples drawn from a belief at a time (see `Learners._draw`).
+POOL = 64
 
 
 @dataclass(frozen=True)
@@ -124,6 +126,18 @@ class Learners:
         self.beliefs: list[np.ndarray] = [_as_constraints(prior) for _ in range(self.n)]
         self.ignored = np.zeros(self.n, dtype=np.int64)  # updates that would empty a belief
         self._star: dict[int, np.ndarray] = {}
+        self._pool: dict[int, np.ndarray] = {}  # pre-drawn samples per learner's belief
+
+    def _draw(self, i: int, k: int) -> np.ndarray:
+        """`k` weight vectors from learner `i`'s belief. Drawn in batches of at least
+        `POOL` and kept until the belief changes (beyond 3 features every `sample` call
+        starts a hit-and-run chain, which costs far more than the draws themselves)."""
+        pool = self._pool.get(i)
+        if pool is None or len(pool) < k:
+            extra = self._region(self.beliefs[i]).sample(max(POOL, k), self.rng)
+            pool = extra if pool is None else np.vstack([pool, extra])
+        self._pool[i] = pool[k:]
+        return pool[:k]
 
     # -- helpers -----------------------------------------------------------------------
     def _region(self, normals: np.ndarray):
@@ -145,22 +159,46 @@ class Learners:
     def _plan_samples(self, env: int, m: int) -> tuple[np.ndarray, np.ndarray]:
         """Draw `m` weight vectors from every learner's belief and plan with them in one
         instance: `Q[n*m, S, A]` (learner i owns rows i*m .. i*m+m-1) and `bounded[n*m]`.
-        Unbounded samples are redrawn when the model says so (module docstring)."""
+
+        With `resample_unbounded`, samples with no finite plan are replaced: each round draws
+        a batch of candidates (twice as many as still needed, growing) for every learner
+        still short, plans them all in one value iteration, and keeps the first bounded
+        ones in draw order; after `MAX_REDRAWS` candidates per needed sample the remaining
+        slots keep unbounded samples.
+        """
         from cfteach.mdp import value_iteration
 
-        regions = [self._region(b) for b in self.beliefs]
-        W = np.vstack([r.sample(m, self.rng) for r in regions])
-        vals = value_iteration(self.batch, W, env=[env])
-        q, bounded = vals.Q[0].copy(), vals.bounded[0].copy()
-        rounds = MAX_REDRAWS if self.model.resample_unbounded else 0
-        for _ in range(rounds):
-            bad = np.flatnonzero(~bounded)
-            if not bad.size:
+        S, A = self.batch.S, self.batch.A
+        q = np.zeros((self.n * m, S, A))
+        bounded = np.zeros(self.n * m, dtype=bool)
+        filled = np.zeros(self.n, dtype=np.int64)
+        spare: dict[int, list[np.ndarray]] = {}
+        budget = m * (MAX_REDRAWS + 1) if self.model.resample_unbounded else m
+        drawn = np.zeros(self.n, dtype=np.int64)
+        factor = 1 if not self.model.resample_unbounded else 2
+        while True:
+            short = [i for i in range(self.n) if filled[i] < m and drawn[i] < budget]
+            if not short:
                 break
-            owners = bad // m
-            Wb = np.vstack([regions[i].sample(1, self.rng) for i in owners])
-            vb = value_iteration(self.batch, Wb, env=[env])
-            q[bad], bounded[bad] = vb.Q[0], vb.bounded[0]
+            counts = [min(budget - drawn[i], factor * (m - filled[i])) for i in short]
+            W = np.vstack([self._draw(i, int(k)) for i, k in zip(short, counts, strict=True)])
+            vals = value_iteration(self.batch, W, env=[env])
+            row = 0
+            for i, k in zip(short, counts, strict=True):
+                drawn[i] += k
+                for j in range(row, row + k):
+                    if filled[i] < m and vals.bounded[0, j]:
+                        q[i * m + filled[i]] = vals.Q[0, j]
+                        bounded[i * m + filled[i]] = True
+                        filled[i] += 1
+                    elif not vals.bounded[0, j]:
+                        spare.setdefault(i, []).append(vals.Q[0, j])
+                row += k
+            factor *= 2
+        for i in range(self.n):  # out of draws: keep unbounded samples (no finite plan)
+            while filled[i] < m:
+                q[i * m + filled[i]] = spare[i].pop(0)
+                filled[i] += 1
         return q, bounded
 
     def replay(self, item: dict[str, Any]) -> Replay:
@@ -213,6 +251,7 @@ class Learners:
                 self.ignored[i] += 1  # contradictory evidence: keep the old belief
                 continue
             self.beliefs[i] = _as_constraints(np.asarray(new.reduced()))
+            self._pool.pop(i, None)
         return added
 
     def _one_step_constraints(self, rep: Replay) -> np.ndarray:
@@ -260,7 +299,15 @@ class Learners:
 
     def belief_areas(self) -> np.ndarray:
         """Measure of each learner's belief on the sphere (estimated beyond 3 features)."""
-        return np.array([self._region(b).area() for b in self.beliefs])
+        return self.belief_area_estimates()[0]
+
+    def belief_area_estimates(self, n_samples: int = 20_000) -> tuple[np.ndarray, np.ndarray]:
+        """Belief measures and their standard errors: exact (error 0) for 3 features, a
+        seeded estimate with its standard error beyond (`Region.area_estimate`)."""
+        if self.batch.F == 3:
+            return np.array([self._region(b).area() for b in self.beliefs]), np.zeros(self.n)
+        est = [self._region(b).area_estimate(n_samples, seed=0) for b in self.beliefs]
+        return np.array([e[0] for e in est]), np.array([e[1] for e in est])
 
     # -- testing -----------------------------------------------------------------------
     def answer(self, tests: Sequence[dict[str, Any]]) -> dict[str, np.ndarray]:

@@ -193,13 +193,14 @@ def _simulate_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
     learners = Learners(dom, chunk["model"], chunk["n"], rng=np.random.default_rng(ss))
     learners.teach(chunk["demos"])
     ans = learners.answer(chunk["tests"]) if chunk["tests"] else None
-    areas = learners.belief_areas() if dom.n_features == 3 else np.full(chunk["n"], np.nan)
+    areas, area_se = learners.belief_area_estimates()
     return {
         "correct": None if ans is None else ans["correct"],
         "reward": None if ans is None else ans["reward"],
         "finished": None if ans is None else ans["finished"],
         "contains_w_star": learners.contains(dom.weights),
         "belief_area": areas,
+        "belief_area_se": area_se,
         "belief_constraints": np.array([len(b) for b in learners.beliefs]),
         "ignored_updates": learners.ignored,
     }
@@ -268,11 +269,14 @@ def _belief_summary(beliefs: pd.DataFrame) -> list[dict[str, Any]]:
     for (model, dom, cond), g in beliefs.groupby(["learner_model", "domain", "condition"],
                                                  observed=True):
         area = g["belief_area"].to_numpy(float)
+        se = g["belief_area_se"].to_numpy(float)
         rows.append({"learner_model": model, "domain": dom, "condition": cond,
                      "n_learners": int(len(g)),
                      "contains_w_star": float(g["contains_w_star"].mean()),
                      "mean_belief_area": float(np.nanmean(area)) if np.isfinite(area).any()
                      else None,
+                     # standard error of that mean from the per-learner estimates (0: exact)
+                     "mean_belief_area_se": float(np.sqrt(np.nansum(se ** 2)) / len(se)),
                      "mean_constraints": float(g["belief_constraints"].mean()),
                      "ignored_updates": int(g["ignored_updates"].sum())})
     return rows
@@ -333,7 +337,8 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
         belief_rows.append(pd.DataFrame({
             "learner_model": model, "domain": label, "condition": cond, "seed": mseed,
             "learner": ids, "contains_w_star": res["contains_w_star"],
-            "belief_area": res["belief_area"], "belief_constraints": res["belief_constraints"],
+            "belief_area": res["belief_area"], "belief_area_se": res["belief_area_se"],
+            "belief_constraints": res["belief_constraints"],
             "ignored_updates": res["ignored_updates"]}))
         if res["correct"] is None:
             continue
