@@ -141,8 +141,10 @@ def analyze(
         ),
     ] = False,
 ) -> None:
-    """Run the paper's analyses on a study export and write report.md, report.html,
-    results.json and figures/ to --out."""
+    """Run the paper's statistics on a study export (or a simulated one).
+
+    Writes report.md, report.html, results.json and figures/ to --out; see docs/analysis.md.
+    """
     if (export_dir is None) == (synthetic is None):
         raise typer.BadParameter("give either EXPORT_DIR or --synthetic N (exactly one)")
     if export_only and synthetic is None:
