@@ -82,6 +82,14 @@ def analyze(
             rich_help_panel=_EXC,
         ),
     ] = False,
+    item_means_include_flagged: Annotated[
+        bool,
+        typer.Option(
+            "--item-means-include-flagged",
+            help="Rule 2: keep rule-1 outliers in the item means (authors: leave them out).",
+            rich_help_panel=_EXC,
+        ),
+    ] = False,
     keep_preview: Annotated[
         bool,
         typer.Option("--keep-preview", help="Keep preview/test sessions.", rich_help_panel=_EXC),
@@ -186,6 +194,7 @@ def analyze(
             item_sd=item_sd or None,
             item_count_sd=item_count_sd or None,
             item_counts_among_nonzero=not counts_among_all,
+            item_means_exclude_flagged=not item_means_include_flagged,
             manual=_read_manual(exclude_file) if exclude_file else {},
             min_minutes=min_minutes,
         )
