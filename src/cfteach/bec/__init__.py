@@ -1,0 +1,116 @@
+"""Constraints on the reward weights that demonstrations convey (spec §5-§7).
+
+A constraint ``c`` means ``c . w >= 0``. Two kinds:
+
+* one-action deviations (standard IRL, spec §5.1): the demo beats every rollout that deviates
+  from it by one action at one step;
+* counterfactuals (spec §6.2): the demo beats what a human with weights ``w_h`` would have
+  done from each of its states (their tied-optimal trajectory with the best true reward).
+
+Single demonstrations::
+
+    from cfteach.bec import one_action_constraints, counterfactual_constraints
+    rows = one_action_constraints("delivery", env_index=0, start_state=state)
+
+Every candidate demonstration of a domain at once (what teaching uses): `demo_set`,
+`one_action_rows`, `counterfactual_rows`, `knowledge_gains`. See docs/teaching.md.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cfteach.bec.constraints import (
+    counterfactual_rows,
+    human_mu,
+    human_mu_batch,
+    human_values,
+    one_action_rows,
+)
+from cfteach.bec.demos import PROFILES, VI_METHOD, DemoSet, check_profile, demo_set
+from cfteach.bec.gain import cone_generators, intersected_areas, knowledge_gains
+from cfteach.bec.rows import RowSet, group_rows, primitive, reduce_and_measure, reduce_sets
+from cfteach.domains import Domain, State, load
+from cfteach.geometry import Region
+
+__all__ = [
+    "PROFILES", "DemoSet", "RowSet", "VI_METHOD", "check_profile", "cone_generators",
+    "counterfactual_constraints", "counterfactual_rows", "demo_set", "group_rows",
+    "human_mu", "human_mu_batch", "human_values", "intersected_areas", "knowledge_gains",
+    "one_action_constraints", "one_action_rows", "policy_bec", "primitive",
+    "reduce_and_measure", "reduce_sets", "resolve_domain",
+]
+
+
+def resolve_domain(domain: Domain | str) -> Domain:
+    """A Domain object, or a built-in name / domain-file path loaded with `domains.load`."""
+    if isinstance(domain, Domain):
+        return domain
+    if isinstance(domain, str | bytes) or hasattr(domain, "__fspath__"):
+        return load(domain)  # type: ignore[arg-type]
+    raise TypeError(f"domain must be a Domain, a built-in name or a path, got {domain!r}")
+
+
+def _demo_index(ds: DemoSet, env_index: int, start_state: State | dict[str, Any]) -> int:
+    if not 0 <= int(env_index) < ds.batch.E:
+        raise ValueError(f"{ds.domain.name}: env_index must lie in 0..{ds.batch.E - 1}, "
+                         f"got {env_index}")
+    inst = ds.batch.instances[int(env_index)]
+    state = inst.state_from_json(start_state) if isinstance(start_state, dict) \
+        else tuple(start_state)
+    try:
+        return ds.index(int(env_index), state)
+    except KeyError:
+        raise ValueError(f"{ds.domain.name}: {start_state} is not a reachable non-terminal "
+                         f"state of instance {env_index}") from None
+
+
+def one_action_constraints(domain: Domain | str, env_index: int,
+                           start_state: State | dict[str, Any], *,
+                           profile: str = "default") -> np.ndarray:
+    """The demo's one-step minimal constraint set (reduced, primitive int rows ``[k, F]``).
+
+    The demonstration is the greedy rollout under the true weights from `start_state` (a
+    State tuple or its JSON form) in instance `env_index`.
+    """
+    ds = demo_set(resolve_domain(domain), profile)
+    d = _demo_index(ds, env_index, start_state)
+    return reduce_sets(one_action_rows(ds), np.array([d]))[d]
+
+
+def counterfactual_constraints(domain: Domain | str, env_index: int,
+                               start_state: State | dict[str, Any], human_weights: Any, *,
+                               method: str = "exact", profile: str = "default",
+                               reference_ties: bool | None = None) -> np.ndarray:
+    """Joint counterfactual constraints of one demo under human models ``[M, F]`` (reduced).
+
+    Only the demo's instance is planned, so this is cheap enough per learner. Human models
+    whose values are unbounded in this instance contribute nothing (spec §6.2).
+    """
+    ds = demo_set(resolve_domain(domain), profile)
+    d = _demo_index(ds, env_index, start_state)
+    W = np.atleast_2d(np.asarray(human_weights, dtype=float))
+    if W.shape[1] != ds.F:
+        raise ValueError(f"human_weights must have {ds.F} columns (one per feature), "
+                         f"got shape {W.shape}")
+    e = int(ds.env[d])
+    ties = ds.profile == "reference" if reference_ties is None else reference_ties
+    mu_h, bounded = human_mu_batch(ds.batch.subset([e]), ds.weights, W, method=method,
+                                   reference_ties=ties)
+    t = np.arange(ds.length[d])
+    s = ds.states[d, t]
+    rows = ds.suffix_mu[d, t][:, None, :] - mu_h[0][:, s].transpose(1, 0, 2)  # [T, M, F]
+    rows = rows[:, bounded[0]].reshape(-1, ds.F)
+    grouped = group_rows(rows, np.zeros(len(rows), dtype=np.int64), 1)
+    if not len(grouped.rows):
+        return np.zeros((0, ds.F), dtype=np.int64)
+    return Region(grouped.rows).reduced().astype(np.int64)
+
+
+def policy_bec(domain: Domain | str, *, profile: str = "default") -> np.ndarray:
+    """The domain's policy-level BEC: reduce(union of every demo's first-step rows)."""
+    ds = demo_set(resolve_domain(domain), profile)
+    rows = one_action_rows(ds, first_step_only=True).rows
+    return Region(np.unique(rows, axis=0)).reduced().astype(np.int64)

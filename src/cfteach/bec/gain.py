@@ -1,0 +1,101 @@
+"""Knowledge gain (spec §7) and overlap of thousands of demonstrations against one region.
+
+gain(xi) = area(running) / area(running & C(xi)); overlap(xi) = area(B & BEC'(xi)). Both only
+depend on the rows that actually *cut* the region: a row c is redundant w.r.t. a convex cone
+iff ``c . g >= 0`` for every generator g of the cone (its extreme rays, plus both directions
+of its lineality space), an exact integer test for 3 features. Demos without a cutting row
+need no geometry at all; the rest are deduplicated by their set of cutting rows, so each
+distinct region is measured once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cfteach.bec.rows import RowSet
+from cfteach.geometry import Region
+
+
+def cone_generators(region: Region) -> np.ndarray | None:
+    """Integer generators ``[G, 3]`` of the cone of an integral 3-feature region.
+
+    ``c`` is redundant for the region iff ``generators @ c >= 0`` everywhere. Returns None
+    when the test is not available (more than 3 features, or non-integral rows); callers
+    then treat every nonzero row as cutting, which is slower but still exact.
+    """
+    if region.dim != 3 or not region.integral:
+        return None
+    n = region.reduced().astype(np.int64)
+    eye = np.eye(3, dtype=np.int64)
+    if region.is_empty():
+        return np.zeros((0, 3), dtype=np.int64)
+    k = len(n)
+    if k == 0:
+        return np.vstack([eye, -eye])
+    if k == 1:
+        a = n[0]
+        e1 = np.cross(a, eye[0])
+        if not e1.any():
+            e1 = np.cross(a, eye[1])
+        e2 = np.cross(a, e1)
+        return np.vstack([a, e1, -e1, e2, -e2])
+    if k == 2:
+        d = np.cross(n[0], n[1])
+        g1 = np.cross(d, n[0])
+        g1 = g1 if g1 @ n[1] > 0 else -g1
+        g2 = np.cross(d, n[1])
+        g2 = g2 if g2 @ n[0] > 0 else -g2
+        return np.vstack([d, -d, g1, g2])
+    u = region.interior_point()
+    v = np.cross(n, np.roll(n, -1, axis=0))
+    sign = np.where(v @ u >= 0, 1, -1)
+    return v * sign[:, None]
+
+
+def cutting(rows: np.ndarray, gens: np.ndarray | None) -> np.ndarray:
+    """bool ``[R]``: rows that cut the region (are negative on some generator)."""
+    if gens is None:
+        return np.any(rows != 0, axis=1)
+    if not len(rows):
+        return np.zeros(0, dtype=bool)
+    return np.any(rows @ gens.T < 0, axis=1)
+
+
+def intersected_areas(region: Region, rowset: RowSet, demos: np.ndarray | None = None,
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """``(area(region & rows(d)) [n], has_rows [n])`` for the demos asked (default all).
+
+    Equal cutting-row sets share one area computation.
+    """
+    ids = np.arange(rowset.n_demos) if demos is None else np.asarray(demos, dtype=np.int64)
+    base = region.area()
+    gens = cone_generators(region)
+    cut = rowset.select(cutting(rowset.rows, gens))
+    counts = cut.counts()
+    has = rowset.counts()[ids] > 0
+    out = np.full(len(ids), base)
+    base_rows = region.reduced().astype(np.int64) if region.integral else region.reduced()
+    memo: dict[bytes, float] = {}
+    for i in np.flatnonzero(counts[ids] > 0).tolist():
+        d = int(ids[i])
+        rows = cut.of(d)
+        key = rows.tobytes()
+        a = memo.get(key)
+        if a is None:
+            a = memo[key] = Region(np.vstack([base_rows, rows]), dim=rowset.F).area()
+        out[i] = a
+    return out, has
+
+
+def knowledge_gains(running: Region, rowset: RowSet, demos: np.ndarray | None = None,
+                    ) -> np.ndarray:
+    """Spec §7 for every demo: area(running) / area(running & C); 0 when C is empty.
+
+    A zero-area intersection (never observed) also gives 0 rather than infinity, so such a
+    demo is never chosen.
+    """
+    areas, has = intersected_areas(running, rowset, demos)
+    base = running.area()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.where(areas > 0, base / np.where(areas > 0, areas, 1.0), 0.0)
+    return np.where(has, g, 0.0)

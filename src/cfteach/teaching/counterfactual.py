@@ -1,0 +1,163 @@
+"""Algorithm 1: counterfactual scaffolding (`counterfactual_only`) and, with feature
+scaffolding, the `proposed` condition (spec §8).
+
+Each round samples human models from the learner's current belief, computes every candidate's
+counterfactual constraints against them, and shows the demonstration whose constraints shrink
+the belief most (or closest to a proportion of the most). Feature scaffolding masks one
+feature at a time: demonstrations whose constraints involve the masked feature are held back
+until the mask moves on.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from cfteach.bec.constraints import counterfactual_rows
+from cfteach.bec.demos import DemoSet
+from cfteach.bec.gain import knowledge_gains
+from cfteach.bec.rows import RowSet, reduce_sets
+from cfteach.geometry import Region
+from cfteach.teaching.common import DemoRecord, masking_order, nonzero_counts, one_step_sets
+from cfteach.teaching.sampling import sample_models
+from cfteach.teaching.visual import tie_break
+
+_DEFAULT_GAIN_EPS = 1e-12
+
+
+def _candidates_reference_list(gains: np.ndarray, proportion: float) -> list[int]:
+    """The reference's list branch: gains > 1 scanned in demo order with isclose grouping."""
+    ids = np.flatnonzero(gains > 1)
+    if not len(ids):
+        return []
+    if proportion == 1:
+        best, out = -np.inf, []
+        for d in ids.tolist():
+            g = gains[d]
+            if np.isclose(g, best):
+                out.append(d)
+            elif g > best:
+                best, out = g, [d]
+        return out
+    target = proportion * gains[ids].max()
+    closest, out = np.inf, []
+    for d in ids.tolist():
+        dist = abs(gains[d] - target)
+        if np.isclose(dist, closest):
+            out.append(d)
+        elif dist < closest:
+            closest, out = dist, [d]
+    return out
+
+
+def _candidates_reference_array(gains: np.ndarray) -> list[int]:
+    """The reference's array branch (consistent state counts, tiles): exact maximum."""
+    g = np.where(gains == 1, 0.0, gains)
+    top = g.max() if len(g) else 0.0
+    if top <= 1:
+        return []
+    return np.flatnonzero(g == top).tolist()
+
+
+def _candidates_default(gains: np.ndarray, proportion: float) -> list[int]:
+    """One rule for every domain: gains > 1, closest to proportion * max (isclose ties)."""
+    ids = np.flatnonzero(gains > 1 + _DEFAULT_GAIN_EPS)
+    if not len(ids):
+        return []
+    dist = np.abs(gains[ids] - proportion * gains[ids].max())
+    return ids[np.isclose(dist, dist.min(), rtol=1e-9, atol=1e-12)].tolist()
+
+
+def candidate_set(profile: str, gains: np.ndarray, proportion: float,
+                  consistent_states: bool) -> list[int]:
+    """The demos tied for selection this round ([] = no information left)."""
+    if profile == "reference":
+        if consistent_states and proportion == 1:
+            return _candidates_reference_array(gains)
+        return _candidates_reference_list(gains, proportion)
+    return _candidates_default(gains, proportion)
+
+
+def blocked(joint: RowSet, demos: np.ndarray, feature: int) -> np.ndarray:
+    """bool per demo in `demos`: some *reduced* joint constraint involves `feature`."""
+    out = np.zeros(len(demos), dtype=bool)
+    touch = np.zeros(joint.n_demos, dtype=bool)
+    touch[joint.demo[joint.rows[:, feature] != 0]] = True
+    need = demos[touch[demos]]
+    if not len(need):
+        return out
+    red = reduce_sets(joint, need)
+    pos = {int(d): i for i, d in enumerate(demos.tolist())}
+    for d, rows in red.items():
+        out[pos[d]] = bool(len(rows) and np.any(rows[:, feature] != 0))
+    return out
+
+
+def counterfactual_curriculum(
+    ds: DemoSet,
+    *,
+    feature_scaffolding: bool,
+    human_models: int,
+    max_demos: int,
+    proportion: float,
+    seed: int,
+    tick: Callable[[str], None] | None = None,
+) -> tuple[list[DemoRecord], Region, list[dict]]:
+    """Run Algorithm 1. Returns (chosen demos, final belief, per-round log)."""
+    F = ds.F
+    names = ds.domain.feature_names
+    running = Region(np.asarray(ds.domain.prior, dtype=np.int64), dim=F)
+    if feature_scaffolding:
+        counts = nonzero_counts(list(one_step_sets(ds).values()), F)
+        masks: list[int | None] = [*masking_order(counts), None]
+    else:
+        masks = [None]
+    mask_i = 0
+    consistent = bool(np.all(ds.batch.n_states == ds.batch.n_states[0]))
+    tie_rng = np.random.default_rng([seed, 2])
+    chosen: list[DemoRecord] = []
+    log: list[dict] = []
+    while len(chosen) < max_demos:
+        # one stream per round index: the conditions share round 1's models for one seed
+        model_rng = np.random.default_rng([seed, 1, len(chosen)])
+        W = sample_models(ds.profile, running.reduced(), human_models, model_rng, F)
+        if not len(W):
+            log.append({"round": len(chosen), "stop": "no human model inside the belief"})
+            break
+        joint, bounded, _ = counterfactual_rows(ds, W)
+        gains_all = knowledge_gains(running, joint)
+        cands: list[int] = []
+        while True:
+            mask = masks[mask_i]
+            gains = gains_all
+            if mask is not None:
+                live = np.flatnonzero(gains_all > 1)
+                gains = gains_all.copy()
+                gains[live[blocked(joint, live, mask)]] = 0.0
+            cands = candidate_set(ds.profile, gains, proportion, consistent)
+            if cands or mask is None:
+                break
+            mask_i += 1
+        entry = {"round": len(chosen), "human_models": W.tolist(),
+                 "bounded_pairs": int(bounded.sum()),
+                 "masked_feature": None if mask is None else names[mask],
+                 "max_gain": float(gains.max()) if len(gains) else 0.0,
+                 "n_candidates": len(cands)}
+        if tick:
+            tick(f"round {len(chosen) + 1}")
+        if not cands:
+            entry["stop"] = "no demonstration adds knowledge"
+            log.append(entry)
+            break
+        prev = chosen[-1].demo if chosen else None
+        d = tie_break(ds, cands, prev, tie_rng)
+        C = reduce_sets(joint, np.array([d]))[d]
+        running = Region(np.vstack([running.reduced().astype(np.int64), C]), dim=F)
+        running = Region(running.reduced(), dim=F)
+        chosen.append(DemoRecord(demo=d, constraints=C, knowledge_gain=float(gains[d]),
+                                 belief_area_after=running.area(),
+                                 masked_feature=None if mask is None else names[mask]))
+        entry["chosen"] = d
+        log.append(entry)
+    return chosen, running, log

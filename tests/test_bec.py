@@ -1,0 +1,200 @@
+"""cfteach.bec: demonstrations, one-action constraints, counterfactual constraints, gains.
+
+Numbers come from the reference spec (§5.1, §8.1) or from independent brute-force
+recomputations (plain per-trajectory rollouts, a literal depth-first enumeration, plain
+Region operations)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cfteach.bec import (
+    counterfactual_constraints,
+    counterfactual_rows,
+    demo_set,
+    human_mu,
+    human_values,
+    knowledge_gains,
+    one_action_constraints,
+    one_action_rows,
+    policy_bec,
+    primitive,
+)
+from cfteach.domains import load
+from cfteach.geometry import Region
+from cfteach.mdp import tied_actions, value_iteration
+from cfteach.mdp.rollout import rollout
+from cfteach.teaching.common import nonzero_counts, one_step_sets
+from cfteach.teaching.sampling import reference_grid_sample
+
+DOMAINS = ["delivery", "tiles", "skateboard"]
+
+POLICY_BEC = {
+    "delivery": [[1, 1, 0], [0, -1, -4], [-1, 0, 2]],
+    "tiles": [[1, -1, -2], [0, 1, -6], [-1, 0, 6]],
+    "skateboard": [[8, 1, -2], [0, -2, 1], [-6, 4, -1]],
+}
+COUNTS = {"delivery": [9480, 1763, 15979], "tiles": [10875, 8927, 21526],
+          "skateboard": [2631, 1012, 2328]}
+N_DEMOS = {"delivery": 9312, "tiles": 12288, "skateboard": 1964}
+
+
+def as_set(rows: np.ndarray) -> set[tuple[int, ...]]:
+    return {tuple(int(x) for x in r) for r in np.asarray(rows)}
+
+
+@pytest.mark.parametrize("name", DOMAINS)
+@pytest.mark.parametrize("profile", ["reference", "default"])
+def test_policy_level_bec_matches_spec(name: str, profile: str) -> None:
+    assert as_set(policy_bec(name, profile=profile)) == as_set(POLICY_BEC[name])
+
+
+@pytest.mark.parametrize("name", DOMAINS)
+def test_demo_count_and_masking_counts(name: str) -> None:
+    ds = demo_set(load(name), "reference")
+    assert ds.D == N_DEMOS[name]
+    counts = nonzero_counts(list(one_step_sets(ds).values()), ds.F)
+    assert counts.tolist() == COUNTS[name]
+
+
+def brute_one_action_rows(ds, d: int) -> set[tuple[int, ...]]:  # noqa: ANN001
+    """Per-trajectory rollouts with `cfteach.mdp.rollout` (one at a time, real states)."""
+    e = int(ds.env[d])
+    traj = rollout(ds.batch, ds.policy, e, ds.start_state(d))
+    out = set()
+    for t in range(len(traj.actions)):
+        mu_opt = traj.phi[t:].sum(axis=0)
+        for b in range(ds.batch.A):
+            if b == traj.actions[t]:
+                continue
+            dev = rollout(ds.batch, ds.policy, e, traj.states[t], first_action=b)
+            row = primitive(np.rint(mu_opt - dev.mu).astype(np.int64)[None])[0]
+            if row.any():
+                out.add(tuple(int(x) for x in row))
+    return out
+
+
+@pytest.mark.parametrize("name", DOMAINS)
+def test_one_action_rows_match_brute_force(name: str) -> None:
+    ds = demo_set(load(name), "reference")
+    rs = one_action_rows(ds)
+    rng = np.random.default_rng(1)
+    for d in rng.choice(ds.D, size=12, replace=False):
+        assert as_set(rs.of(int(d))) == brute_one_action_rows(ds, int(d))
+        # the demo itself is the reference rollout
+        traj = rollout(ds.batch, ds.policy, int(ds.env[d]), ds.start_state(int(d)))
+        assert [ds.batch.actions[a] for a in traj.actions] == ds.action_names(int(d))
+        assert np.array_equal(np.rint(traj.mu), ds.mu[d])
+
+
+def test_single_demo_api_matches_batch() -> None:
+    dom = load("skateboard")
+    ds = demo_set(dom, "default")
+    d = 100
+    e, s = int(ds.env[d]), ds.start_state(d)
+    red = one_action_constraints(dom, e, s)
+    assert as_set(red) == as_set(Region(brute_list(brute_one_action_rows(ds, d))).reduced())
+    inst = ds.instance(d)
+    assert as_set(one_action_constraints(dom, e, inst.state_to_json(s))) == as_set(red)
+    W = reference_grid_sample(np.array([[0, 0, -1]]), 8)
+    joint, _, _ = counterfactual_rows(ds, W)
+    single = counterfactual_constraints(dom, e, s, W)
+    assert as_set(single) == as_set(Region(joint.of(d)).reduced())
+    with pytest.raises(ValueError, match="not a reachable"):
+        one_action_constraints(dom, e, (6, 4, 0, 0, 0))
+
+
+def brute_list(s: set[tuple[int, ...]]) -> np.ndarray:
+    return np.array(sorted(s), dtype=np.int64)
+
+
+@pytest.mark.parametrize("name", DOMAINS)
+def test_reference_values_match_value_iteration(name: str) -> None:
+    """The shortcut (skip positive-cycle pairs) gives value_iteration's reference answer."""
+    dom = load(name)
+    ds = demo_set(dom, "reference")
+    W = reference_grid_sample(np.array([[0, 0, -1]]), 8)
+    ref = value_iteration(ds.batch, W, method="reference")
+    bounded, (pe, pm), Q = human_values(ds.batch, W, "reference")
+    assert np.array_equal(bounded, ref.bounded)
+    valid = ds.batch.valid[pe]
+    assert np.array_equal(Q[valid], ref.Q[pe, pm][valid])
+
+
+def dfs_reference(inst, state, tied_of, w, horizon=25, limit=10):  # noqa: ANN001, ANN201
+    """The reference's recursion, literally: record at terminal or depth >= 25; return
+    early once more than `limit` are recorded; best true reward, first on exact ties."""
+    recorded: list[np.ndarray] = []
+
+    def rec(s, depth, mu):  # noqa: ANN001, ANN202
+        if len(recorded) > limit:
+            return
+        if inst.is_terminal(s) or depth >= horizon:
+            recorded.append(mu)
+            return
+        for a in tied_of(s):
+            s2, phi, _ = inst.step(s, a)
+            rec(s2, depth + 1, mu + phi)
+
+    rec(state, 0, np.zeros(len(w)))
+    vals = [float(np.asarray(w).dot(m)) for m in recorded]
+    return recorded[int(np.argmax(vals))], len(recorded)
+
+
+@pytest.mark.parametrize("name,profile", [("tiles", "reference"), ("skateboard", "default"),
+                                          ("delivery", "reference")])
+def test_human_trajectories_match_depth_first_enumeration(name: str, profile: str) -> None:
+    dom = load(name)
+    ds = demo_set(dom, profile)
+    W = reference_grid_sample(np.array([[0, 0, -1]]), 8)
+    vals = value_iteration(ds.batch, W, method="exact" if profile == "default" else "reference")
+    tied = tied_actions(vals.Q)
+    mu_ref, bounded = human_mu(ds, W, reference_ties=True)
+    mu_dp, _ = human_mu(ds, W, reference_ties=False)
+    rng = np.random.default_rng(3)
+    e_b, m_b = np.nonzero(bounded)
+    big = small = 0
+    for i in rng.permutation(len(e_b))[:40]:
+        e, m = int(e_b[i]), int(m_b[i])
+        inst = ds.batch.instances[e]
+        idx = ds.batch.state_index[e]
+
+        def tied_of(s, e=e, m=m, idx=idx):  # noqa: ANN001, ANN202
+            return np.flatnonzero(tied[e, m, idx[s]]).tolist()
+
+        for si in rng.choice(ds.batch.n_states[e], size=3, replace=False):
+            s = ds.batch.states[e][si]
+            best, n = dfs_reference(inst, s, tied_of, dom.weights)
+            assert np.array_equal(mu_ref[e, m, si], np.rint(best)), (e, m, s)
+            if n <= 10:  # complete enumeration: the DP's best is the same trajectory
+                small += 1
+                assert np.array_equal(mu_dp[e, m, si], np.rint(best))
+            else:
+                big += 1
+    assert small > 0
+    if name == "tiles":
+        assert big > 0  # tiles has states with more than 10 tied shortest paths
+
+
+@pytest.mark.parametrize("name", ["skateboard", "delivery"])
+def test_fast_gains_equal_plain_region_ops(name: str) -> None:
+    ds = demo_set(load(name), "default")
+    W = reference_grid_sample(np.array([[0, 0, -1]]), 8)
+    joint, _, _ = counterfactual_rows(ds, W, method="exact", reference_ties=False)
+    rng = np.random.default_rng(5)
+    for running_rows in ([[0, 0, -1]], POLICY_BEC[name], ds.domain.posterior,
+                         np.vstack([ds.domain.prior, [[-1, 1, 0]]]), np.zeros((0, 3), int)):
+        running = Region(np.array(running_rows).reshape(-1, 3), dim=3)
+        demos = rng.choice(ds.D, size=60, replace=False)
+        fast = knowledge_gains(running, joint, demos)
+        for g, d in zip(fast, demos, strict=True):
+            rows = joint.of(int(d))
+            if not len(rows):
+                assert g == 0
+                continue
+            new = Region(np.vstack([running.rows, Region(rows).reduced()]).astype(int))
+            if new.area() == 0:
+                assert g == 0  # contradicting constraints are never worth showing
+                continue
+            assert g == pytest.approx(running.area() / new.area(), rel=1e-12)
