@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from cfteach.geometry import Region, infeasible_rows, overlap, reduce_many, sphere_area
+from cfteach.geometry import (
+    Region,
+    clear_cache,
+    infeasible_rows,
+    overlap,
+    reduce_many,
+    sphere_area,
+)
 
 # ----------------------------------------------------------------- independent helpers
 
@@ -351,7 +358,9 @@ def test_reduce_many_matches_region() -> None:
     rng = np.random.default_rng(8)
     sets = [feasible_int_set(rng, int(rng.integers(3, 20))) for _ in range(50)]
     sets += sets[:10]
+    clear_cache()
     red, areas = reduce_many(sets)
+    clear_cache()
     for s, rr, a in zip(sets, red, areas, strict=True):
         assert np.array_equal(rr, Region(s).reduced())
         assert a == Region(s).area()
@@ -379,3 +388,48 @@ def test_reduce_many_special_sets() -> None:
     assert red[4].dtype == np.float64 and areas[4] == pytest.approx(2 * np.pi)
     with pytest.raises(ValueError, match="same number of columns"):
         reduce_many([np.eye(3), np.eye(4)])
+
+
+def test_batched_solver_matches_single_solver() -> None:
+    from cfteach.geometry._normalize import canonical_rows
+    from cfteach.geometry.sphere3 import solve3, solve3_batch
+
+    rng = np.random.default_rng(9)
+    by_k: dict[int, list[np.ndarray]] = {}
+    for _ in range(1500):
+        k, hi = int(rng.integers(2, 25)), int(rng.integers(1, 6))
+        base = rng.integers(-hi, hi + 1, size=(k, 3))
+        if rng.random() < 0.7:  # mostly non-empty, like teaching constraint sets
+            s = np.sign(base @ rng.standard_normal(3)).astype(np.int64)
+            s[s == 0] = 1
+            base = base * s[:, None]
+        rows, _ = canonical_rows(base)
+        if len(rows) >= 2:
+            by_k.setdefault(len(rows), []).append(rows)
+    n_batched = n_empty = 0
+    for sets in by_k.values():
+        for rows, got in zip(sets, solve3_batch(sets), strict=True):
+            if got is None:
+                continue
+            n_batched += 1
+            one = solve3(rows, True)
+            assert got.empty == one.empty
+            n_empty += got.empty
+            assert np.array_equal(got.order, one.order)
+            assert got.area == pytest.approx(one.area, abs=1e-12)
+    assert n_batched > 1300 and n_empty > 50
+
+
+def test_reduce_many_on_mixed_random_sets() -> None:
+    rng = np.random.default_rng(10)
+    sets = []
+    for _ in range(300):
+        k, hi = int(rng.integers(1, 30)), int(rng.integers(1, 4))
+        sets.append(rng.integers(-hi, hi + 1, size=(k, 3)))
+    clear_cache()
+    red, areas = reduce_many(sets + sets[:50])
+    clear_cache()  # compare with solutions computed one at a time
+    for s, rr, a in zip(sets + sets[:50], red, areas, strict=True):
+        r = Region(s)
+        assert np.array_equal(rr, r.reduced())
+        assert a == pytest.approx(r.area(), abs=1e-12)

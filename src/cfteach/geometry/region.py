@@ -8,6 +8,7 @@ repeated constraint sets of a teaching run are solved once.
 
 from __future__ import annotations
 
+import sys
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
 from math import gamma, pi
@@ -15,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from ._normalize import as_matrix, canonical_rows, unit_rows
-from .sphere3 import Solved3, polygon_vertices, solve3
+from ._normalize import INT_EXACT_LIMIT, as_matrix, canonical_rows, unit_rows
+from .sphere3 import SMALL_K, Solved3, polygon_vertices, solve3, solve3_batch
 
 _CACHE: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
 _CACHE_SIZE = 65536
@@ -115,9 +116,7 @@ class Region:
                 from ._highdim import solve_nd
 
                 hit = solve_nd(self._rows, self._units(), self._integral, self._hint)
-            _CACHE[key] = hit
-            if len(_CACHE) > _CACHE_SIZE:
-                _CACHE.popitem(last=False)
+            _cache_put(key, hit)
         self._solved = hit
         return hit
 
@@ -252,13 +251,19 @@ def overlap(a: Region, b: Region) -> float:
 
 
 def reduce_many(
-    arrays: Iterable[Any] | Sequence[Any], dim: int | None = None
+    arrays: Iterable[Any] | Sequence[Any],
+    dim: int | None = None,
+    *,
+    progress: bool | None = None,
 ) -> tuple[list[np.ndarray], np.ndarray]:
     """Reduce and measure many constraint sets: ``(reduced arrays, areas)``.
 
-    Integral sets are canonicalised all at once (one vectorised gcd / de-duplication over
-    the concatenated rows); each distinct canonical set is then solved once (and shared
-    with ``Region`` through the process-wide cache).
+    Same answers as ``Region(a).reduced()`` and ``Region(a).area()`` for each ``a``, faster:
+    integral sets are canonicalised all at once (one vectorised gcd / de-duplication over
+    the concatenated rows), distinct small 3-feature integer sets are solved together in
+    vectorised batches of equal size, and each distinct set is solved once (shared with
+    ``Region`` through the process-wide cache). ``progress`` shows a tqdm bar on stderr
+    (default: when stderr is a terminal and there are more than 5,000 sets).
     """
     mats = [as_matrix(a, dim) for a in arrays]
     if not mats:
@@ -267,10 +272,17 @@ def reduce_many(
     if len(dims) != 1:
         raise ValueError(f"all constraint sets must have the same number of columns, got {dims}")
     canon = _canonical_batch(mats)
+    if dims == {3}:
+        _presolve3(canon)
     reduced: list[np.ndarray] = []
     areas = np.empty(len(mats))
     seen: dict[bytes, tuple[np.ndarray, float]] = {}
-    for i, (rows, integral) in enumerate(canon):
+    if progress is None:
+        progress = sys.stderr.isatty() and len(canon) > 5000
+    from tqdm import tqdm
+
+    bar = tqdm(canon, desc="regions", unit="set", disable=not progress, leave=False)
+    for i, (rows, integral) in enumerate(bar):
         key = rows.tobytes() + (b"i" if integral else b"f") + bytes([rows.shape[1]])
         hit = seen.get(key)
         if hit is None:
@@ -280,6 +292,29 @@ def reduce_many(
         reduced.append(hit[0].copy())
         areas[i] = hit[1]
     return reduced, areas
+
+
+def _presolve3(canon: list[tuple[np.ndarray, bool]]) -> None:
+    """Solve the distinct small exact-integer sets not yet cached, batched by row count."""
+    groups: dict[int, dict[tuple[Any, ...], np.ndarray]] = {}
+    for rows, integral in canon:
+        k = len(rows)
+        if not integral or k < 2 or k > SMALL_K or int(np.abs(rows).max()) > INT_EXACT_LIMIT:
+            continue
+        key = (3, True, k, rows.tobytes())
+        if key not in _CACHE:
+            groups.setdefault(k, {})[key] = rows
+    for sets in groups.values():
+        keys = list(sets)
+        for key, res in zip(keys, solve3_batch([sets[q] for q in keys]), strict=True):
+            if res is not None:
+                _cache_put(key, res)
+
+
+def _cache_put(key: tuple[Any, ...], value: Any) -> None:
+    _CACHE[key] = value
+    if len(_CACHE) > _CACHE_SIZE:
+        _CACHE.popitem(last=False)
 
 
 def _canonical_batch(mats: list[np.ndarray]) -> list[tuple[np.ndarray, bool]]:

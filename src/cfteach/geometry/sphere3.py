@@ -236,3 +236,101 @@ def triangle_area(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     den = 1.0 + np.einsum("...i,...i->...", a, b) + np.einsum("...i,...i->...", b, c)
     den = den + np.einsum("...i,...i->...", c, a)
     return 2.0 * np.arctan2(num, den)
+
+
+def solve3_batch(sets: list[np.ndarray]) -> list[Solved3 | None]:
+    """``_solve_small`` for many canonical integer row sets of one size k at once.
+
+    All sets must share the row count ``k`` (2 <= k <= SMALL_K) and have entries of at
+    most ``INT_EXACT_LIMIT``. Sets the vectorised path cannot settle (no cheap interior
+    direction, inconsistent successor cycle) come back as None for the caller to solve one
+    at a time; every other answer equals ``solve3``'s.
+    """
+    out: list[Solved3 | None] = [None] * len(sets)
+    if not sets:
+        return out
+    k = sets[0].shape[0]
+    chunk = max(1, 1_000_000 // (k**3))
+    for start in range(0, len(sets), chunk):
+        part = sets[start : start + chunk]
+        for off, res in enumerate(_batch_chunk(np.stack(part))):
+            out[start + off] = res
+    return out
+
+
+def _batch_chunk(pi: np.ndarray) -> list[Solved3 | None]:
+    b, k, _ = pi.shape
+    p = pi.astype(np.float64)  # exact for entries <= INT_EXACT_LIMIT
+    cr = cross(p[:, :, None, :], p[:, None, :, :])  # [b, k, k, 3]
+    d = cr @ p.transpose(0, 2, 1)[:, None, :, :]  # [b, k, k, k]
+    eye = np.eye(k, dtype=bool)
+    cand = (d >= 0).all(axis=3) & ~eye & (cr != 0).any(axis=3)
+    has = cand.any(axis=(1, 2))
+    s1 = p.sum(axis=1)
+    ok1 = (np.einsum("bkc,bc->bk", p, s1) > 0).all(axis=1)
+    s2 = (cr * cand[..., None]).sum(axis=(1, 2))
+    ok2 = (np.einsum("bkc,bc->bk", p, s2) > 0).all(axis=1)
+    u = np.where(ok1[:, None], s1, s2)
+    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+    unit = p / np.linalg.norm(p, axis=2, keepdims=True)
+    marg = np.einsum("bkc,bc->bk", unit, u).min(axis=1)
+    good = has & (ok1 | ok2) & (marg > MARGIN_EPS)
+    # hull edges: Binet-Cauchy betweenness, only on candidate pairs with extra zero dets
+    bi, ii, jj = np.nonzero(cand)
+    dd = d[bi, ii, jj]  # [P, k]
+    zero = dd == 0
+    valid = cand.copy()
+    extra = zero.sum(axis=1) > 2
+    if extra.any():
+        bx, ix, jx, zx = bi[extra], ii[extra], jj[extra], zero[extra]
+        g = np.einsum("bic,bjc->bij", pi, pi)  # int64, exact
+        gi, gj = g[bx, ix], g[bx, jx]  # [Q, k]: G[i, l], G[j, l]
+        gii, gjj, gij = gi[np.arange(len(ix)), ix], gj[np.arange(len(jx)), jx], gi[
+            np.arange(len(ix)), jx]
+        e1 = gii[:, None] * gj - gij[:, None] * gi
+        e2 = gi * gjj[:, None] - gj * gij[:, None]
+        ok = (~zx | ((e1 >= 0) & (e2 >= 0))).all(axis=1)
+        valid[bx[~ok], ix[~ok], jx[~ok]] = False
+    is_vert = valid.any(axis=2)
+    nverts = is_vert.sum(axis=1)
+    outdeg = valid.sum(axis=2)
+    succ = np.argmax(valid, axis=2)
+    first = np.argmax(is_vert, axis=1)
+    rows_b = np.arange(b)
+    order = np.zeros((b, k), dtype=np.intp)
+    order[:, 0] = first
+    for t in range(1, k):
+        order[:, t] = succ[rows_b, order[:, t - 1]]
+    pos = np.arange(k)[None, :]
+    in_cycle = pos < nverts[:, None]
+    # a proper cycle: each vertex has one successor, and the walk returns to the start
+    # exactly after nverts steps, visiting distinct vertices
+    back = succ[rows_b, order[rows_b, np.maximum(nverts - 1, 0)]] == first
+    walk = np.sort(np.where(in_cycle, order, k + pos), axis=1)
+    distinct = (np.diff(walk, axis=1) != 0).all(axis=1)
+    proper = (
+        ((outdeg == 1) | ~is_vert).all(axis=1) & back & distinct & (nverts >= 3)
+    ) | (nverts == 2)
+    good &= proper
+    # areas: 2 pi - sum of angles between cyclically consecutive irredundant normals
+    nxt_pos = np.where(pos + 1 < nverts[:, None], pos + 1, 0)
+    two = nverts == 2
+    order_fix = order.copy()
+    if two.any():
+        vv = np.argsort(~is_vert[two], axis=1, kind="stable")[:, :2]
+        order_fix[two, :2] = vv
+    a = unit[rows_b[:, None], order_fix]
+    nb = unit[rows_b[:, None], order_fix[rows_b[:, None], nxt_pos]]
+    cab = cross(a, nb)
+    ang = np.arctan2(np.sqrt((cab * cab).sum(axis=2)), (a * nb).sum(axis=2))
+    area = np.maximum(2 * np.pi - np.where(in_cycle, ang, 0.0).sum(axis=1), 0.0)
+    res: list[Solved3 | None] = []
+    for i in range(b):
+        if not has[i]:
+            res.append(_EMPTY)
+        elif good[i]:
+            res.append(Solved3(False, order_fix[i, : nverts[i]].copy(), u[i].copy(),
+                               float(area[i])))
+        else:
+            res.append(None)
+    return res
