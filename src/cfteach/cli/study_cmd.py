@@ -60,6 +60,8 @@ def init(
     source: Path | None = typer.Option(None, "--from", help="Output folder of `cfteach "
                                        "reproduce` (DIR/<domain>/<condition>.json, tests.json)."),
     toy: bool = typer.Option(False, "--toy", help="A tiny 3-domain study for trying things."),
+    preview: bool = typer.Option(False, "--preview", help="Placeholder demonstrations and "
+                                 "tests on the real domains (not the paper's), to preview."),
     domains: str = typer.Option(",".join(DEFAULT_DOMAINS), help="Comma-separated domains."),
     profile: str = typer.Option("default", help="Teaching profile when generating."),
     seed: int = typer.Option(0, help="Seed when generating curricula and tests."),
@@ -73,11 +75,13 @@ def init(
                                          "its assignment cell after this long."),
 ) -> None:
     """Write a study folder (study.json) from curricula and test sets."""
-    from cfteach.study.build import init_study, toy_sources
+    from cfteach.study.build import init_study, preview_sources, toy_sources
 
     names = [d.strip() for d in domains.split(",") if d.strip()]
     if toy:
         sources = toy_sources()
+    elif preview:
+        sources = preview_sources(names, seed=seed)
     elif source is not None:
         sources = _sources_from_dir(source, names)
     else:
@@ -119,6 +123,20 @@ def progress(
     for c in p["cells"]:
         typer.echo(f"{c['condition']:<20} {c['domain_order']:<28} set {c['test_set']}  "
                    f"occupied {c['occupied']}  completed {c['completed']}")
+
+
+@study_app.command("screenshots")
+def screenshots(
+    study: Path = typer.Option(Path("study"), "--study", help="Study folder."),
+    out: Path = typer.Option(Path("screenshots"), "--out", help="Folder for the PNG files."),
+    prefix: str = typer.Option("study-", help="File name prefix."),
+    chromium: str = typer.Option("/usr/bin/chromium", help="Chromium executable."),
+) -> None:
+    """Save a PNG of every kind of page (headless Chromium, throw-away database)."""
+    from cfteach.study.screenshots import take_screenshots
+
+    for p in take_screenshots(study, out, prefix=prefix, chromium=chromium):
+        typer.echo(str(p))
 
 
 def serve(

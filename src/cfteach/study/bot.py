@@ -17,18 +17,19 @@ class BotError(RuntimeError):
     pass
 
 
-def run_participant(client: Any, params: dict, *, study: dict | None = None,
+def run_participant(client: Any, params: dict | None, *, study: dict | None = None,
                     rng: random.Random | None = None, stop_after: int | None = None,
-                    fail_practice: bool = False) -> dict:
+                    fail_practice: bool = False, token: str | None = None) -> dict:
     """Go from consent to completion; returns the final state and what was answered.
 
     With `study` (the server's study.json) the bot plays tests optimally; without it, it
     takes the shortest way to the end. `stop_after` stops after that many advancing steps.
     """
     rng = rng or random.Random(0)
-    r = client.post("/api/session", json=params)
-    _ok(r)
-    token = r.json()["token"]
+    if token is None:
+        r = client.post("/api/session", json=params)
+        _ok(r)
+        token = r.json()["token"]
     headers = {"X-Session-Token": token}
     answers: dict[str, Any] = {"token": token, "tests": [], "likert": [], "events": 0}
 

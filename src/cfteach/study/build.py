@@ -151,11 +151,15 @@ def _split_tests(name: str, ts: dict, instances: list, actions: tuple[str, ...],
                                  f"{check.reward}, not optimal_reward {opt}")
             sets[i // per].append({
                 "test_id": f"{name}-{level}-{i}", "difficulty": level,
-                "overlap": float(t.get("overlap", float("nan"))),
+                "overlap": _overlap(t.get("overlap")),
                 "layout": instance_layout(name, inst), "game": game,
                 "optimal_reward": opt, "optimal_length": len(t["actions"]),
             })
     return sets
+
+
+def _overlap(x: Any) -> float | None:
+    return None if x is None or x != x else float(x)  # NaN = unknown
 
 
 def browser_game(test: dict) -> dict:
@@ -244,5 +248,66 @@ def toy_sources(names: tuple[str, ...] = ("toy_a", "toy_b", "toy_c"),
               "settings": {}, "feature_names": list(dom.feature_names),
               "weights": list(dom.weights), "belief": {"constraints": [], "area": 0.0},
               "excluded": [], "cluster_centres": [], "tests": tests}
+        out.append(DomainSource(dom, cur, ts))
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# Placeholder material on the real domains, to preview pages before curricula exist.
+
+
+def _demo_from(dom: Any, inst: Any, start: Any) -> dict:
+    game = build_game(inst, start, tuple(dom.actions))
+    acts = best_path(game, [float(w) for w in dom.weights])
+    states, s, mu = [inst.state_to_json(start)], start, None
+    for a in acts:
+        s, f, _ = inst.step(s, list(dom.actions).index(a))
+        mu = f if mu is None else mu + f
+        states.append(inst.state_to_json(s))
+    mu = [0] * len(dom.weights) if mu is None else [int(x) for x in mu]
+    reward = float(sum(float(w) * m for w, m in zip(dom.weights, mu, strict=True)))
+    return {"env_code": list(inst.env_code), "env_index": inst.index,
+            "start_state": inst.state_to_json(start), "actions": acts, "states": states,
+            "feature_counts": mu, "reward": reward, "constraints": []}
+
+
+def preview_sources(names: Iterable[str] = ("delivery", "tiles", "skateboard"), *,
+                    demos: int = 3, seed: int = 0) -> list[DomainSource]:
+    """Placeholder curricula and tests on real domains (NOT the paper's: optimal
+    demonstrations from random instances, tests with arbitrary difficulty labels), for
+    previewing and load-testing the platform before `cfteach reproduce` has run."""
+    import random
+
+    from cfteach.domains import load
+
+    rng = random.Random(seed)
+    out = []
+    for name in names:
+        dom = load(name)
+        insts = dom.instances()
+        rich = sorted(insts, key=lambda i: -i.complexity)[: max(1, len(insts) // 2)]
+        picks = [rng.choice(rich) for _ in range(demos)]
+        ds = [_demo_from(dom, i, i.initial_state) for i in picks]
+        cur = {c: {"schema": "cfteach.curriculum/1", "domain": name, "condition": c,
+                   "profile": "preview", "seed": seed, "settings": {},
+                   "feature_names": list(dom.feature_names),
+                   "weights": [float(w) for w in dom.weights], "prior": [], "demos": ds,
+                   "final_belief": {"constraints": [], "area": 0.0}} for c in CONDITIONS}
+        tests: dict[str, list] = {lv: [] for lv in LEVELS}
+        for lv in LEVELS:
+            while len(tests[lv]) < 6:
+                inst = rng.choice(rich)
+                start = rng.choice(inst.states())
+                t = _demo_from(dom, inst, start)
+                if not t["actions"]:
+                    continue
+                t.update(overlap=None, difficulty=lv,
+                         all_optimal_actions=[t["actions"]], optimal_reward=t["reward"])
+                tests[lv].append(t)
+        ts = {"schema": "cfteach.tests/1", "domain": name, "profile": "preview", "seed": seed,
+              "settings": {}, "feature_names": list(dom.feature_names),
+              "weights": [float(w) for w in dom.weights],
+              "belief": {"constraints": [], "area": 0.0}, "excluded": [],
+              "cluster_centres": [], "tests": tests}
         out.append(DomainSource(dom, cur, ts))
     return out

@@ -421,6 +421,7 @@ const pages = {
       h("h1", { text: "Demonstration of best strategy" }),
       h("p", { text: "Feel free to watch the demonstration as many times as you want (but at " +
         "least once)!" }),
+      h("p", { text: `Task: ${s.info.task}` }),
       title, board, h("div", { class: "controls" }, playBtn, " ", prev, " ", next), last);
     show();
   },

@@ -78,13 +78,7 @@ export function drawGrid(layout, state, opts = {}) {
   const W = layout.width * CELL, H = layout.height * CELL;
   const svg = el("svg", { viewBox: `0 0 ${W} ${H}`, width: W, height: H, class: "grid",
     role: "img", "aria-label": opts.label || "game board" });
-  for (let x = 1; x <= layout.width; x++) {
-    for (let y = 1; y <= layout.height; y++) {
-      const [x0, y0] = origin(layout, [x, y]);
-      el("rect", { x: x0, y: y0, width: CELL, height: CELL, fill: "#fff", stroke: "#000",
-        "stroke-width": 1.5, "data-x": x, "data-y": y, "data-kind": "cell" }, svg);
-    }
-  }
+  el("rect", { x: 0, y: 0, width: W, height: H, fill: "#fff" }, svg);
   for (const m of layout.markers || []) {
     const [x0, y0] = origin(layout, m.cell);
     if (m.style === "goal") region("goal", x0, y0, svg, { "data-marker": m.name });
@@ -99,6 +93,13 @@ export function drawGrid(layout, state, opts = {}) {
     const [x0, y0] = origin(layout, w);
     el("rect", { x: x0, y: y0, width: CELL, height: CELL, fill: COLORS.wall,
       "data-kind": "wall" }, svg);
+  }
+  for (let x = 1; x <= layout.width; x++) {
+    for (let y = 1; y <= layout.height; y++) {
+      const [x0, y0] = origin(layout, [x, y]);
+      el("rect", { x: x0, y: y0, width: CELL, height: CELL, fill: "none", stroke: "#000",
+        "stroke-width": 1.5, "data-x": x, "data-y": y, "data-kind": "cell" }, svg);
+    }
   }
   for (const m of layout.markers || []) {
     if (m.style === "goal") continue;
