@@ -50,6 +50,7 @@ def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
     assert set(committed["figures"]) == {
         "difficulty",
         "interaction",
+        "paper_bars",
         "likert",
         "confidence",
         "exploratory",

@@ -100,7 +100,7 @@ def test_analyze_writes_every_output(report) -> None:
     out, results = report
     for name in ("report.md", "report.html", "results.json"):
         assert (out / name).stat().st_size > 1000
-    for fig in ("difficulty", "interaction", "likert", "confidence", "exploratory"):
+    for fig in ("difficulty", "interaction", "paper_bars", "likert", "confidence", "exploratory"):
         for ext in ("png", "svg"):
             assert (out / "figures" / f"{fig}.{ext}").stat().st_size > 5000
     on_disk = json.loads((out / "results.json").read_text())

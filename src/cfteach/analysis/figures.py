@@ -215,6 +215,53 @@ def difficulty_plot(results: dict[str, Any], out_dir: Path) -> list[str]:
     return _save(fig, out_dir, "difficulty")
 
 
+def paper_bars(results: dict[str, Any], out_dir: Path) -> list[str]:
+    """The paper's Fig. 5 form: grouped bars of proportion optimal by difficulty, one bar per
+    counterfactual level, here with 95% CIs and the per-difficulty simple-effect p."""
+    res = results["counterfactual"]
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    if "skipped" in res:
+        ax.text(
+            0.5, 0.5, "not enough participants", ha="center", va="center", transform=ax.transAxes
+        )
+        return _save(fig, out_dir, "paper_bars")
+    means = pd.DataFrame(res["means"])
+    levels = list(dict.fromkeys(means["level"]))
+    x = np.arange(len(DIFFICULTIES))
+    width = 0.8 / len(levels)
+    colors = plt.get_cmap("viridis")(np.linspace(0.2, 0.8, len(levels)))
+    for i, lvl in enumerate(levels):
+        m = means[means["level"] == lvl].set_index("difficulty").loc[list(DIFFICULTIES)]
+        mean = m["mean"].astype(float).to_numpy()
+        lo = mean - np.array([np.nan if c[0] is None else c[0] for c in m["ci95"]], float)
+        hi = np.array([np.nan if c[1] is None else c[1] for c in m["ci95"]], float) - mean
+        pos = x + (i - (len(levels) - 1) / 2) * width
+        ax.bar(pos, mean, width * 0.95, color=colors[i], label=CF_LABELS.get(int(lvl), lvl))
+        ax.errorbar(pos, mean, yerr=[lo, hi], fmt="none", ecolor="k", capsize=3)
+    for row in res["simple_effects"]["rows"]:
+        j = DIFFICULTIES.index(row["difficulty"])
+        p = row["p_tukey"]
+        ax.text(
+            j,
+            1.02,
+            "p < .001"
+            if p is not None and p < 0.001
+            else f"p = {p:.3f}".replace("0.", ".", 1)
+            if p is not None
+            else "",
+            ha="center",
+            fontsize=8,
+        )
+    ax.set_xticks(x, DIFF_LABELS)
+    ax.set_xlabel("Test difficulty")
+    ax.set_ylabel("Proportion optimal (mean, 95% CI)")
+    ax.set_ylim(0, 1.1)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
+    ax.set_title("Counterfactual scaffolding (paper's Fig. 5 form)", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, out_dir, "paper_bars")
+
+
 def exploratory_plot(frames: Frames, out_dir: Path) -> list[str]:
     """Per-participant demonstration plays and test time per optimal step, by condition."""
     s = frames.subjects
@@ -246,6 +293,7 @@ def make_figures(frames: Frames, results: dict[str, Any], out_dir: Path) -> dict
     return {
         "difficulty": difficulty_plot(results, out_dir),
         "interaction": interaction_plot(results["mixed"], out_dir),
+        "paper_bars": paper_bars(results["mixed"], out_dir),
         "likert": likert_bars(frames, out_dir),
         "confidence": confidence_plot(frames, results["h1"]["spearman"], out_dir),
         "exploratory": exploratory_plot(frames, out_dir),

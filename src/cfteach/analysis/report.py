@@ -442,6 +442,11 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
             f"figures/{figures['interaction'][0]}",
             "Proportion optimal by difficulty and group (mean, 95% CI)",
         )
+    if "paper_bars" in figures:
+        doc.img(
+            f"figures/{figures['paper_bars'][0]}",
+            "The paper's Fig. 5 form (counterfactual scaffolding), with 95% CIs",
+        )
     if "likert" in figures:
         doc.img(f"figures/{figures['likert'][0]}", "Likert ratings by condition")
 
