@@ -101,8 +101,11 @@ def _unique_sorted_int_rows(ints: np.ndarray) -> np.ndarray:
 
 
 def unit_rows(rows: np.ndarray) -> np.ndarray:
-    """Unit-length float copies of ``rows``."""
+    """Unit-length float copies of ``rows`` (elementwise arithmetic: same bits in batches)."""
     f = rows.astype(np.float64)
     if len(f) == 0:
         return f
-    return f / np.sqrt(np.einsum("ij,ij->i", f, f))[:, None]
+    sq = f[:, 0] ** 2
+    for c in range(1, f.shape[1]):
+        sq = sq + f[:, c] ** 2
+    return f / np.sqrt(sq)[:, None]

@@ -11,6 +11,7 @@ polygon), which gives 2 pi for one constraint and ``2 pi - 2 theta`` for a lune.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -143,13 +144,19 @@ def _order_from_pairs(
 
 def polygon_area(unit_ordered: np.ndarray) -> float:
     """2 pi minus the cyclic sum of angles between consecutive (irredundant) unit normals."""
-    a = unit_ordered
-    nxt = np.arange(1, len(a) + 1)
+    nxt = np.arange(1, len(unit_ordered) + 1)
     nxt[-1] = 0
-    b = a[nxt]
+    ang = _pair_angles(unit_ordered, unit_ordered[nxt])
+    return max(2 * np.pi - math.fsum(ang.tolist()), 0.0)
+
+
+def _pair_angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angles between unit vectors along the last axis; elementwise arithmetic only, so a
+    batched call gives bit-identical values to a single one."""
     cr = cross(a, b)
-    ang = np.arctan2(np.sqrt((cr * cr).sum(axis=1)), (a * b).sum(axis=1))
-    return max(float(2 * np.pi - ang.sum()), 0.0)
+    sin = np.sqrt(cr[..., 0] ** 2 + cr[..., 1] ** 2 + cr[..., 2] ** 2)
+    cos = a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+    return np.arctan2(sin, cos)
 
 
 def _canonical_start(rows: np.ndarray, order: np.ndarray) -> np.ndarray:
@@ -272,7 +279,7 @@ def _batch_chunk(pi: np.ndarray) -> list[Solved3 | None]:
     ok2 = (np.einsum("bkc,bc->bk", p, s2) > 0).all(axis=1)
     u = np.where(ok1[:, None], s1, s2)
     u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
-    unit = p / np.linalg.norm(p, axis=2, keepdims=True)
+    unit = p / np.sqrt(p[..., 0] ** 2 + p[..., 1] ** 2 + p[..., 2] ** 2)[..., None]
     marg = np.einsum("bkc,bc->bk", unit, u).min(axis=1)
     good = has & (ok1 | ok2) & (marg > MARGIN_EPS)
     # hull edges: Binet-Cauchy betweenness, only on candidate pairs with extra zero dets
@@ -321,16 +328,14 @@ def _batch_chunk(pi: np.ndarray) -> list[Solved3 | None]:
         order_fix[two, :2] = vv
     a = unit[rows_b[:, None], order_fix]
     nb = unit[rows_b[:, None], order_fix[rows_b[:, None], nxt_pos]]
-    cab = cross(a, nb)
-    ang = np.arctan2(np.sqrt((cab * cab).sum(axis=2)), (a * nb).sum(axis=2))
-    area = np.maximum(2 * np.pi - np.where(in_cycle, ang, 0.0).sum(axis=1), 0.0)
+    ang = _pair_angles(a, nb)
     res: list[Solved3 | None] = []
     for i in range(b):
         if not has[i]:
             res.append(_EMPTY)
         elif good[i]:
-            res.append(Solved3(False, order_fix[i, : nverts[i]].copy(), u[i].copy(),
-                               float(area[i])))
+            area = max(2 * np.pi - math.fsum(ang[i, : nverts[i]].tolist()), 0.0)
+            res.append(Solved3(False, order_fix[i, : nverts[i]].copy(), u[i].copy(), area))
         else:
             res.append(None)
     return res
