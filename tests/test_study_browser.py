@@ -18,7 +18,7 @@ import pytest
 from sqlalchemy import func, select
 
 import test_study_support
-from cfteach.study.build import toy_sources
+from cfteach.study.build import init_study, preview_sources, toy_sources
 from cfteach.study.config import load_study
 from cfteach.study.db import make_engine
 from cfteach.study.export import export_csv
@@ -51,20 +51,23 @@ def browser():  # noqa: ANN201
 
 
 @functools.cache
-def _sources() -> dict:
-    return {s.domain.name: s for s in toy_sources()}
+def _sources(kind: str) -> dict:
+    made = toy_sources() if kind == "toy" else preview_sources(seed=0)
+    return {s.domain.name: s for s in made}
 
 
-def _independent(test_id: str, actions: list[str]) -> tuple[float, float]:
+def _independent(kind: str, test_id: str, actions: list[str]) -> tuple[float, float]:
+    """Replay with the domain's own `step` (not the server's table): reward, optimum."""
     dom, level, i = test_id.rsplit("-", 2)
-    src = _sources()[dom]
+    src = _sources(kind)[dom]
     t = src.tests["tests"][level][int(i)]
     inst = src.domain.instances()[t["env_index"]]
     s, mu = inst.state_from_json(t["start_state"]), [0.0, 0.0, 0.0]
     for a in actions:
-        s, phi, _ = inst.step(s, src.domain.actions.index(a))
-        mu = [m + f for m, f in zip(mu, phi, strict=True)]
-    return sum(w * m for w, m in zip(src.domain.weights, mu, strict=True)), t["optimal_reward"]
+        s, phi, _ = inst.step(s, list(src.domain.actions).index(a))
+        mu = [m + float(f) for m, f in zip(mu, phi, strict=True)]
+    reward = sum(float(w) * m for w, m in zip(src.domain.weights, mu, strict=True))
+    return reward, t["optimal_reward"]
 
 
 class Participant:
@@ -248,7 +251,7 @@ def _run(browser, toy_study: Path, tmp_path: Path, **kw) -> tuple[Participant, P
     return who, out, db
 
 
-def _check_export(who: Participant, out: Path) -> None:
+def _check_export(who: Participant, out: Path, kind: str = "toy", demos: int = 2) -> None:
     (p,) = _rows(out / "participants.csv")
     assert p["prolific_pid"] == PID and p["status"] == "completed"
     assert (p["age"], p["gender"], p["education"]) == ("34", "Non-binary", "Master's degree")
@@ -260,7 +263,7 @@ def _check_export(who: Participant, out: Path) -> None:
         key = (t["domain"], int(t["trial_index"]))
         assert t["actions"].split() == who.played[key]
         assert int(t["confidence"]) == who.confidence[key]
-        reward, opt = _independent(t["test_id"], who.played[key])
+        reward, opt = _independent(kind, t["test_id"], who.played[key])
         assert math.isclose(float(t["reward"]), reward, abs_tol=1e-9)
         assert t["optimal"] == str(int(math.isclose(reward, opt, abs_tol=1e-9)))
         if key[1] % 2:
@@ -275,7 +278,7 @@ def _check_export(who: Participant, out: Path) -> None:
         inf, eff = who.likert[r["domain"]]
         assert int(r["value"]) == (inf if r["item"] == "informativeness" else eff)
     views = _rows(out / "demo_views.csv")
-    assert len(views) == 6
+    assert len(views) == 3 * demos
     for v in views:  # the first demonstration of each domain was watched twice
         expected = ("2", "1") if v["demo_index"] == "0" else ("1", "0")
         assert (v["plays_completed"], v["replays"]) == expected
@@ -299,3 +302,12 @@ def test_browser_reload_mid_study_resumes(browser, toy_study: Path,  # noqa: ANN
     engine.dispose()
     assert (lo, hi) == (1, n)  # gap-free, in order
     assert loads == 3  # one per reload
+
+
+def test_browser_full_study_on_the_real_domains(browser, tmp_path: Path) -> None:  # noqa: ANN001
+    """Delivery, tiles and skateboard as drawn and played in the page (placeholder curricula:
+    optimal demonstrations from random instances)."""
+    study = tmp_path / "real"
+    init_study(study, preview_sources(seed=0), demo_step_ms=15, completion_code="C0MPL3TE")
+    who, out, _ = _run(browser, study, tmp_path)
+    _check_export(who, out, kind="preview", demos=3)
