@@ -104,3 +104,44 @@ def test_intersection_reuses_interior_hint() -> None:
     u = both.interior_point()
     assert u is not None and both.contains(u)
     assert both.area() == pytest.approx(Region(np.vstack([a.rows, b.rows])).area())
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_large_sets_of_big_integers_match_exact_determinant_hull(seed: int) -> None:
+    from cfteach.geometry.sphere3 import _solve_small
+
+    rng = np.random.default_rng(100 + seed)
+    w = rng.standard_normal(3)
+    base = rng.integers(-3000, 3001, size=(120, 3))
+    # add near-collinear rows: sums of two existing rows lie on segments of the projection
+    base = np.vstack([base, base[:30] + base[30:60]])
+    s = np.sign(base @ w).astype(np.int64)
+    s[s == 0] = 1
+    rows, _ = canonical_rows(base * s[:, None])
+    assert len(rows) > SMALL_K
+    got = Region(rows)
+    exact = _solve_small(rows, True, unit_rows(rows), None)  # O(k^3) exact method
+    assert {tuple(x) for x in got.reduced().tolist()} == {
+        tuple(x) for x in rows[exact.order].tolist()
+    }
+    assert got.area() == pytest.approx(exact.area, rel=1e-12, abs=1e-15)
+
+
+def test_exact_hull_check_recovers_missed_and_flat_vertices() -> None:
+    from cfteach.geometry.sphere3 import _exact_hull_check
+
+    # square pyramid region: normals (+-1, 0, 1), (0, +-1, 1); plus the redundant (1, 0, 2)
+    rows, _ = canonical_rows(np.array([[1, 0, 1], [-1, 0, 1], [0, 1, 1], [0, -1, 1],
+                                       [1, 0, 2], [1, 1, 2]]))
+    unit = unit_rows(rows)
+    u = np.array([0.0, 0.0, 1.0])
+    truth = {(1, 0, 1), (-1, 0, 1), (0, 1, 1), (0, -1, 1)}
+    idx = {tuple(r): i for i, r in enumerate(rows.tolist())}
+    # an "answer" that misses (0, -1, 1) and includes the flat (1, 1, 2)
+    bad = np.array([idx[(1, 0, 1)], idx[(1, 1, 2)], idx[(0, 1, 1)], idx[(-1, 0, 1)]])
+    fixed = _exact_hull_check(rows, unit, u, bad)
+    assert {tuple(x) for x in rows[fixed].tolist()} == truth
+    # a complete answer with a collinear extra vertex loses the extra
+    flat = np.array([idx[(1, 0, 1)], idx[(1, 1, 2)], idx[(0, 1, 1)], idx[(-1, 0, 1)],
+                     idx[(0, -1, 1)]])
+    assert {tuple(x) for x in rows[_exact_hull_check(rows, unit, u, flat)].tolist()} == truth

@@ -202,8 +202,28 @@ def _order_hull(unit: np.ndarray, u: np.ndarray, exact_rows: np.ndarray | None) 
     except QhullError:
         return _line_extremes(centred)
     if exact_rows is not None:
-        order = _drop_flat_vertices(exact_rows, order)
+        order = _exact_hull_check(exact_rows, unit, u, order)
     return order
+
+
+def _exact_hull_check(
+    rows: np.ndarray, unit: np.ndarray, u: np.ndarray, order: np.ndarray
+) -> np.ndarray:
+    """Make Qhull's answer exact for integer rows.
+
+    Every true vertex missed by Qhull lies strictly outside one of its edges (exact
+    determinant < 0); the true hull is then that of Qhull's vertices plus those points,
+    solved with the exact determinant test. Collinear vertices are dropped.
+    """
+    pf = rows.astype(np.float64)
+    a, b = pf[order], pf[np.roll(order, -1)]
+    outside = np.any(cross(a, b) @ pf.T < 0, axis=0)
+    if outside.any():
+        sub = np.union1d(order, np.flatnonzero(outside))
+        solved = _solve_small(rows[sub], True, unit[sub], [u])
+        if not solved.empty:
+            return sub[solved.order]
+    return _drop_flat_vertices(rows, order)
 
 
 def _line_extremes(centred: np.ndarray) -> np.ndarray:
