@@ -63,7 +63,7 @@ def main() -> int:
     server = subprocess.Popen(
         [sys.executable, "-c", "from cfteach.cli import main; main()", "serve",
          "--study", str(study), "--db", db, "--host", "127.0.0.1", "--port", str(port),
-         "--researcher-token", "bench"],
+         "--researcher-token", "bench", "--sessions-per-minute", "0"],
         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     base = f"http://127.0.0.1:{port}"
     try:

@@ -285,3 +285,22 @@ def test_migrations_match_models(db_url: str) -> None:
         diff = compare_metadata(MigrationContext.configure(conn), Base.metadata)
     engine.dispose()
     assert diff == []
+
+
+def test_rate_limits(toy_study: Path, tmp_path: Path) -> None:
+    app = create_app(toy_study, f"sqlite:///{tmp_path / 'rl.db'}", sessions_per_minute=3,
+                     events_per_minute=2)
+    with TestClient(app) as c:
+        codes = [c.post("/api/session", json={"prolific_pid": f"rl{i}"}).status_code
+                 for i in range(5)]
+        assert codes == [200, 200, 200, 429, 429]
+        tok = c.post("/api/session", json={"prolific_pid": "rl0"}, headers={
+            "X-Forwarded-For": "ignored"})
+        assert tok.status_code == 429  # keyed by the connection's address only
+    app.state.service.engine.dispose()
+    from cfteach.study.ratelimit import RateLimiter
+
+    lim = RateLimiter(2, window=10)
+    assert [lim.allow("a", t) for t in (0, 1, 2, 10.5, 11.5, 11.6)] == [
+        True, True, False, True, True, False]
+    assert lim.allow("b", 2)

@@ -149,6 +149,10 @@ def serve(
     researcher_token: str | None = typer.Option(
         None, envvar="CFTEACH_RESEARCHER_TOKEN",
         help="Token for /researcher (random if unset; printed at start)."),
+    sessions_per_minute: int = typer.Option(120, help="New sessions per client address per "
+                                            "minute (0 = no limit)."),
+    events_per_minute: int = typer.Option(600, help="Events per session per minute "
+                                          "(0 = no limit)."),
 ) -> None:
     """Run the study server (participants open /?PROLIFIC_PID=...&STUDY_ID=...&SESSION_ID=...)."""
     import secrets
@@ -158,7 +162,8 @@ def serve(
     from cfteach.study.server import create_app
 
     token = researcher_token or secrets.token_urlsafe(16)
-    app = create_app(study, db, researcher_token=token)
+    app = create_app(study, db, researcher_token=token, sessions_per_minute=sessions_per_minute,
+                     events_per_minute=events_per_minute)
     typer.echo(f"researcher page: http://{host}:{port}/researcher?token={token}", err=True)
     uvicorn.run(app, host=host, port=port, log_level=os.environ.get("CFTEACH_LOG", "info"),
                 access_log=False)

@@ -16,6 +16,7 @@ from starlette.middleware.base import BaseHTTPMiddleware
 from . import schemas
 from .config import load_study
 from .db import make_engine, upgrade
+from .ratelimit import RateLimiter
 from .service import ApiError, StudyService
 
 HERE = Path(__file__).parent
@@ -48,8 +49,12 @@ def _err(status: int, code: str, message: str) -> JSONResponse:
 
 
 def create_app(study_dir: str | Path, db_url: str | None = None, *,
-               researcher_token: str | None = None, seed: int | None = None) -> FastAPI:
-    """Build the server for one study folder; migrations run here, before serving."""
+               researcher_token: str | None = None, seed: int | None = None,
+               sessions_per_minute: int = 120, events_per_minute: int = 600) -> FastAPI:
+    """Build the server for one study folder; migrations run here, before serving.
+
+    Rate limits (0 = off): new sessions per client address, events per session, per minute.
+    """
     study = load_study(study_dir)
     if db_url is None:
         db_url = f"sqlite:///{Path(study_dir) / 'study.db'}"
@@ -57,6 +62,8 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     upgrade(engine)
     service = StudyService(engine, study, seed=seed)
     token = researcher_token or secrets.token_urlsafe(16)
+    session_limit = RateLimiter(sessions_per_minute)
+    event_limit = RateLimiter(events_per_minute)
 
     app = FastAPI(title="cfteach study", docs_url=None, redoc_url=None, openapi_url=None)
     app.state.service = service
@@ -91,6 +98,9 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     @app.post("/api/session")
     def start(req: schemas.SessionRequest, request: Request) -> JSONResponse:
         _json_only(request)
+        addr = request.client.host if request.client else "?"
+        if not session_limit.allow(addr):
+            raise ApiError(429, "rate_limited", "too many new sessions; try again in a minute")
         row, resumed = service.start(req)
         return JSONResponse({"token": row.token, "resumed": resumed,
                              "participant_id": row.participant_id})
@@ -103,6 +113,8 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     def event(req: schemas.EventRequest, request: Request,
               x_session_token: str | None = Header(default=None)) -> JSONResponse:
         _json_only(request)
+        if not event_limit.allow(x_session_token or "?"):
+            raise ApiError(429, "rate_limited", "too many events; slow down")
         return JSONResponse(service.post_event(x_session_token, req))
 
     def _check_researcher(given: str | None) -> None:
