@@ -21,11 +21,13 @@ from .sphere3 import SMALL_K, Solved3, polygon_vertices, solve3, solve3_batch
 
 _CACHE: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
 _CACHE_SIZE = 65536
+_AREA_CACHE: dict[tuple[Any, ...], tuple[float, float]] = {}  # F > 3 estimates
 
 
 def clear_cache() -> None:
     """Forget all memoised region solutions (for memory or benchmarking)."""
     _CACHE.clear()
+    _AREA_CACHE.clear()
 
 
 def sphere_area(dim: int) -> float:
@@ -158,7 +160,13 @@ class Region:
             return float(s.area), 0.0
         from ._highdim import area_nd
 
-        return area_nd(self, s, n_samples=n_samples, seed=seed)
+        key = (*self._key(), n_samples, seed)
+        hit = _AREA_CACHE.get(key)
+        if hit is None:
+            hit = _AREA_CACHE[key] = area_nd(self, s, n_samples=n_samples, seed=seed)
+            if len(_AREA_CACHE) > _CACHE_SIZE:
+                _AREA_CACHE.pop(next(iter(_AREA_CACHE)))
+        return hit
 
     def fraction(self) -> float:
         """Area as a fraction of the whole sphere (1.0 for no constraints)."""
