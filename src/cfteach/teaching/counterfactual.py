@@ -23,7 +23,8 @@ from cfteach.teaching.common import DemoRecord, masking_order, nonzero_counts, o
 from cfteach.teaching.sampling import sample_models
 from cfteach.teaching.visual import tie_break
 
-_DEFAULT_GAIN_EPS = 1e-12
+_DEFAULT_GAIN_EPS = 1e-12  # default profile: a gain must exceed 1 by this to count
+_DEFAULT_TIE_TOL = 1e-9  # default profile: gains this close (relative) are tied
 
 
 def _candidates_reference_list(gains: np.ndarray, proportion: float) -> list[int]:
@@ -61,12 +62,14 @@ def _candidates_reference_array(gains: np.ndarray) -> list[int]:
 
 
 def _candidates_default(gains: np.ndarray, proportion: float) -> list[int]:
-    """One rule for every domain: gains > 1, closest to proportion * max (isclose ties)."""
+    """One rule for every domain: gains > 1, closest to proportion * max (ties within a
+    relative 1e-9, so float noise in the areas cannot split a tie)."""
     ids = np.flatnonzero(gains > 1 + _DEFAULT_GAIN_EPS)
     if not len(ids):
         return []
-    dist = np.abs(gains[ids] - proportion * gains[ids].max())
-    return ids[np.isclose(dist, dist.min(), rtol=1e-9, atol=1e-12)].tolist()
+    target = proportion * gains[ids].max()
+    dist = np.abs(gains[ids] - target)
+    return ids[dist <= dist.min() + _DEFAULT_TIE_TOL * max(1.0, target)].tolist()
 
 
 def candidate_set(profile: str, gains: np.ndarray, proportion: float,
