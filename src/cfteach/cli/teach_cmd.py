@@ -1,7 +1,121 @@
-"""Commands of this family are added as their issues land."""
+"""`cfteach teach` (a curriculum for one condition) and `cfteach tests` (Algorithm 2).
+
+Both print JSON (docs/schemas.md) or write it with --out. Heavy imports happen inside the
+commands so `cfteach --help` stays fast.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Annotated, Any
 
 import typer
 
+_PROFILE_HELP = "reference: the authors' deterministic choices; default: ours (docs/profiles.md)."
+
+
+def _fail(msg: str) -> None:
+    typer.echo(f"Error: {msg}", err=True)
+    raise typer.Exit(2)
+
+
+def _emit(data: dict[str, Any], out: Path | None) -> None:
+    text = json.dumps(data, indent=2)
+    if out is None:
+        typer.echo(text)
+    else:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text + "\n")
+        typer.echo(f"wrote {out}", err=True)
+
+
+def _show(cur_json: dict[str, Any], domain: Any) -> None:
+    """Each demonstration as text, with the renderer if it is available."""
+    try:
+        from cfteach import render
+    except ImportError:  # pragma: no cover - render is part of the package
+        render = None
+    for i, demo in enumerate(cur_json["demos"], 1):
+        head = (f"demo {i}: env {demo['env_code']}  gain {demo['knowledge_gain']:.3f}  "
+                f"mask {demo['masked_feature']}  actions {' '.join(demo['actions'])}")
+        typer.echo(head, err=True)
+        if render is not None:
+            inst = domain.instance(demo["env_index"])
+            layout = render.layout_from_instance(inst)
+            typer.echo(render.demo_text(layout, demo["states"]), err=True)
+
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the `cfteach` app."""
+    """Add `cfteach teach` and `cfteach tests` to the app."""
+
+    @app.command("teach")
+    def teach_cmd(
+        domain: Annotated[str, typer.Argument(help="Built-in domain name or domain file.")],
+        condition: Annotated[str, typer.Option(
+            "--condition", "-c",
+            help="baseline, feature_only, counterfactual_only or proposed.")] = "proposed",
+        profile: Annotated[str, typer.Option(help=_PROFILE_HELP)] = "default",
+        seed: Annotated[int, typer.Option(help="Seed of everything random.")] = 0,
+        human_models: Annotated[int, typer.Option(
+            "--human-models", "-m", help="Human models sampled per round.")] = 8,
+        max_demos: Annotated[int | None, typer.Option(
+            help="Most demonstrations to show (default: the study's 5/5/7, else 5).")] = None,
+        proportion: Annotated[float | None, typer.Option(
+            help="Pick the gain closest to this share of the best, in (0, 1] (default: "
+                 "1; the reference profile uses 0.7 for counterfactual_only in delivery "
+                 "and skateboard).")] = None,
+        out: Annotated[Path | None, typer.Option("--out", "-o",
+                                                 help="Write the JSON here.")] = None,
+        show: Annotated[bool, typer.Option(
+            help="Also draw each demonstration as text (on stderr).")] = False,
+    ) -> None:
+        """Choose the demonstrations one study condition shows; print the curriculum JSON."""
+        from cfteach.teaching import teach
+
+        try:
+            cur = teach(domain, condition, profile=profile, seed=seed,
+                        human_models=human_models, max_demos=max_demos,
+                        proportion=proportion, progress=sys.stderr.isatty())
+        except (ValueError, TypeError) as exc:
+            _fail(str(exc))
+        data = cur.to_json()
+        _emit(data, out)
+        if show:
+            _show(data, cur.domain)
+
+    @app.command("tests")
+    def tests_cmd(
+        domain: Annotated[str, typer.Argument(help="Built-in domain name or domain file.")],
+        per_level: Annotated[int, typer.Option(
+            help="Tests per difficulty level (fewer if a cluster is smaller).")] = 6,
+        training: Annotated[list[Path] | None, typer.Option(
+            "--training", "-t",
+            help="Curriculum JSON file(s) whose demonstrations are not to be tests.")] = None,
+        all_candidates: Annotated[bool, typer.Option(
+            "--all", help="Also list every candidate with its overlap and cluster.")] = False,
+        profile: Annotated[str, typer.Option(help=_PROFILE_HELP)] = "default",
+        seed: Annotated[int, typer.Option(help="Seed of everything random.")] = 0,
+        human_models: Annotated[int, typer.Option(
+            "--human-models", "-m", help="Human models sampled from the posterior.")] = 8,
+        out: Annotated[Path | None, typer.Option("--out", "-o",
+                                                 help="Write the JSON here.")] = None,
+    ) -> None:
+        """Pick low / medium / high difficulty tests (Algorithm 2); print the tests JSON."""
+        from cfteach.teaching import select_tests
+
+        curricula = []
+        for path in training or []:
+            try:
+                curricula.append(json.loads(Path(path).read_text()))
+            except (OSError, json.JSONDecodeError) as exc:
+                _fail(f"cannot read training curriculum {path}: {exc}")
+        try:
+            ts = select_tests(domain, training=curricula, profile=profile, seed=seed,
+                              per_level=per_level, human_models=human_models,
+                              include_candidates=all_candidates,
+                              progress=sys.stderr.isatty())
+        except (ValueError, TypeError) as exc:
+            _fail(str(exc))
+        _emit(ts.to_json(), out)

@@ -1,0 +1,44 @@
+"""`cfteach teach` and `cfteach tests` through the typer app."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from cfteach.cli import app
+
+runner = CliRunner()
+
+
+def test_teach_then_tests(tmp_path: Path) -> None:
+    cur = tmp_path / "cur.json"
+    res = runner.invoke(app, ["teach", "skateboard", "--condition", "proposed", "--profile",
+                              "reference", "--max-demos", "2", "--out", str(cur)])
+    assert res.exit_code == 0, res.output
+    data = json.loads(cur.read_text())
+    assert data["schema"] == "cfteach.curriculum/1" and len(data["demos"]) == 2
+    assert data["settings"]["max_demos"] == 2
+    res = runner.invoke(app, ["tests", "skateboard", "--profile", "reference", "--per-level",
+                              "2", "--training", str(cur), "--all"])
+    assert res.exit_code == 0, res.output
+    tests = json.loads(res.stdout)
+    assert tests["schema"] == "cfteach.tests/1"
+    assert {k: len(v) for k, v in tests["tests"].items()} == {"low": 2, "medium": 2, "high": 2}
+    assert len(tests["excluded"]) == 2
+    starts = {(c["env_index"], json.dumps(c["start_state"], sort_keys=True))
+              for c in tests["candidates"]}
+    for d in data["demos"]:
+        assert (d["env_index"], json.dumps(d["start_state"], sort_keys=True)) not in starts
+
+
+def test_errors_name_the_problem(tmp_path: Path) -> None:
+    res = runner.invoke(app, ["teach", "skateboard", "--condition", "bogus"])
+    assert res.exit_code == 2 and "bogus" in res.output
+    res = runner.invoke(app, ["teach", "skateboard", "--proportion", "2"])
+    assert res.exit_code == 2 and "proportion" in res.output
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    res = runner.invoke(app, ["tests", "skateboard", "--training", str(bad)])
+    assert res.exit_code == 2 and "bad.json" in res.output
