@@ -311,3 +311,29 @@ def test_browser_full_study_on_the_real_domains(browser, tmp_path: Path) -> None
     init_study(study, preview_sources(seed=0), demo_step_ms=15, completion_code="C0MPL3TE")
     who, out, _ = _run(browser, study, tmp_path)
     _check_export(who, out, kind="preview", demos=3)
+
+
+def test_browser_events_made_offline_are_sent_after_reload(browser, toy_study: Path,  # noqa: ANN001
+                                                           tmp_path: Path) -> None:
+    app = create_app(toy_study, f"sqlite:///{tmp_path / 'off.db'}", seed=5)
+    with running(app) as base:
+        ctx = browser.new_context(viewport={"width": 1000, "height": 700})
+        page = ctx.new_page()
+        page.goto(f"{base}/?PROLIFIC_PID=offline01&STUDY_ID=st1&SESSION_ID=se1")
+        who = Participant(page, base, load_study(toy_study))
+        who.run(stop_at="demos")
+        assert who.state()["step"]["completed"][0] == 0
+        ctx.set_offline(True)
+        page.click("#play")  # the play start/end events cannot reach the server
+        page.wait_for_selector("#next:not([disabled])")
+        pending = page.evaluate("Object.keys(localStorage).length")
+        assert pending == 1
+        ctx.set_offline(False)
+        page.reload()  # the stored events are sent before the page is drawn
+        page.wait_for_selector("main[data-step='demos']")
+        st = who.state()
+        assert st["step"]["completed"][0] == 1
+        assert page.is_enabled("#next") or page.get_attribute("#board", "data-demo") == "1"
+        assert page.evaluate("localStorage.getItem(Object.keys(localStorage)[0])") == "[]"
+        ctx.close()
+    app.state.service.engine.dispose()

@@ -55,29 +55,49 @@ async function api(method, path, body) {
 }
 
 // Events are sent one at a time, in order; a lost response is retried with the same id, and
-// the server answers a retried (already stored) event with 409 duplicate_event.
+// the server answers a retried (already stored) event with 409 duplicate_event. Until the
+// server has answered, an event also waits in localStorage, so a reload or a closed tab
+// sends it on the next visit instead of losing it.
 let queue = Promise.resolve();
+const pendingKey = () => `cfteach-pending-${token}`;
+function loadPending() {
+  try { return JSON.parse(localStorage.getItem(pendingKey()) || "[]"); } catch { return []; }
+}
+function savePending(list) {
+  try { localStorage.setItem(pendingKey(), JSON.stringify(list)); } catch { /* full/blocked */ }
+}
+function dropPending(id) { savePending(loadPending().filter((e) => e.event_id !== id)); }
+
+async function send(ev, attempts) {
+  for (let attempt = 0; attempt < attempts; attempt++) {
+    try {
+      const r = await api("POST", "/api/event", ev);
+      dropPending(ev.event_id);
+      if (r.status === 200) return r.data;
+      if (r.status === 409 && r.data.error === "duplicate_event") {
+        const s = await api("GET", "/api/state");
+        return { ok: true, duplicate: true, state: s.data };
+      }
+      return { ok: false, status: r.status, ...r.data };
+    } catch (err) {
+      await new Promise((ok) => setTimeout(ok, 300 * 2 ** attempt));
+    }
+  }
+  return { ok: false, error: "network", detail: "could not reach the server; please check " +
+    "your connection and try again" };
+}
+
 function post(stepIndex, type, payload = {}) {
   const ev = { event_id: uuid(), step_index: stepIndex, type, payload,
     client_ms: Math.round(performance.timeOrigin + performance.now()) };
-  const job = queue.then(async () => {
-    for (let attempt = 0; attempt < 6; attempt++) {
-      try {
-        const r = await api("POST", "/api/event", ev);
-        if (r.status === 200) return r.data;
-        if (r.status === 409 && r.data.error === "duplicate_event") {
-          const s = await api("GET", "/api/state");
-          return { ok: true, duplicate: true, state: s.data };
-        }
-        return { ok: false, status: r.status, ...r.data };
-      } catch (err) {
-        await new Promise((ok) => setTimeout(ok, 300 * 2 ** attempt));
-      }
-    }
-    return { ok: false, error: "network", detail: "could not reach the server" };
-  });
+  savePending([...loadPending(), ev]);
+  const job = queue.then(() => send(ev, 6));
   queue = job.catch(() => {});
   return job;
+}
+
+async function flushPending() {
+  for (const ev of loadPending()) await send(ev, 2);
 }
 
 async function advance(stepIndex, type, payload) {
@@ -588,6 +608,7 @@ async function main() {
   if (r.status !== 200) { showError(r.data.detail || "Could not start the study."); return; }
   token = r.data.token;
   sessionStorage.setItem("cfteach-token", token);
+  await flushPending();
   const s = await api("GET", "/api/state");
   if (s.status !== 200) { showError(s.data.detail || "Could not load the study."); return; }
   if (r.data.resumed) await post(s.data.step_index, "page_load", {});
