@@ -164,3 +164,19 @@ def test_more_than_three_features_end_to_end() -> None:
     assert np.all(area <= half_sphere * 1.01) and np.all(se >= 0)
     got = learners.answer([make_demo(dom, e, s) for e, s in cands[1::9][:6]])
     assert got["correct"].shape == (4, 6) and got["finished"].all()
+
+
+@pytest.mark.slow
+def test_real_proposed_curriculum_keeps_w_star_and_beats_no_teaching() -> None:
+    from cfteach.teaching import select_tests, teach
+
+    dom = load("skateboard")
+    cur = teach(dom, "proposed", seed=0)
+    tests = select_tests(dom, training=[cur], seed=0, per_level=6).to_json()["tests"]
+    flat = [t for level in ("low", "medium", "high") for t in tests[level]]
+    taught = Learners(dom, "counterfactual", 16, rng=0)
+    taught.teach(cur.to_json()["demos"])
+    assert taught.contains(dom.weights).all()
+    assert (taught.belief_areas() < 2 * np.pi).all()
+    none = Learners(dom, "counterfactual", 16, rng=0)
+    assert taught.answer(flat)["correct"].mean() > none.answer(flat)["correct"].mean() + 0.1

@@ -382,6 +382,9 @@ def run_sweep(domains: list[str], conditions: list[str] | None = None,
                          f"{', '.join((*CONDITIONS, NO_TEACHING))}")
     if seeds < 1:
         raise ValueError(f"seeds must be at least 1, got {seeds}")
+    if source is not None and seeds > 1:
+        raise ValueError("seeds > 1 replicates teaching and test selection, but with a source "
+                         "folder the curricula are fixed; vary the learners with seed instead")
     refs = [parse_domain(d) for d in domains]
     models = learner_models or ["counterfactual", "noisy"]
     with Executor(backend=backend, n_workers=n_workers, scheduler=scheduler) as ex:
