@@ -337,3 +337,38 @@ def test_browser_events_made_offline_are_sent_after_reload(browser, toy_study: P
         assert page.evaluate("localStorage.getItem(Object.keys(localStorage)[0])") == "[]"
         ctx.close()
     app.state.service.engine.dispose()
+
+
+def test_browser_practice_lockout_after_three_failures(browser, toy_study: Path,  # noqa: ANN001
+                                                       tmp_path: Path) -> None:
+    app = create_app(toy_study, f"sqlite:///{tmp_path / 'lock.db'}", seed=6)
+    with running(app) as base:
+        ctx = browser.new_context(viewport={"width": 1000, "height": 700})
+        page = ctx.new_page()
+        redirected: list[str] = []
+        page.route("https://app.prolific.com/**", lambda route: (
+            redirected.append(route.request.url),
+            route.fulfill(status=200, body="<p>prolific</p>", content_type="text/html")))
+        page.goto(f"{base}/?PROLIFIC_PID=lockout01&STUDY_ID=st1&SESSION_ID=se1")
+        who = Participant(page, base, load_study(toy_study))
+        who.run(stop_at="practice")
+        st = who.state()["step"]
+        # A wasted step out and back, then the best route: 10% short of the target.
+        wasteful = ["down", "up", *best_path(st["game"], st["weights"])]
+        page.click("#board")
+        for attempt in range(3):
+            if attempt:
+                page.keyboard.press("r")
+                page.wait_for_selector("#board[data-moves='']")
+            who.press(wasteful)
+            if attempt < 2:
+                page.wait_for_selector(f"#energy:has-text('Attempts remaining: {2 - attempt}')")
+                assert "less than 50% energy" in page.text_content("#practice-msg")
+        page.wait_for_selector("#practice-msg:has-text(\"don't qualify\")")
+        page.reload()  # a reload cannot bring the practice back
+        page.wait_for_selector("main[data-step='screened_out']")
+        assert page.text_content("#code") == "SCR33N"
+        page.wait_for_url("https://app.prolific.com/**", timeout=10_000)
+        assert redirected == ["https://app.prolific.com/submissions/complete?cc=SCR33N"]
+        ctx.close()
+    app.state.service.engine.dispose()
