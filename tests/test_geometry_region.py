@@ -433,3 +433,29 @@ def test_reduce_many_on_mixed_random_sets() -> None:
         r = Region(s)
         assert np.array_equal(rr, r.reduced())
         assert a == r.area()  # bit-identical to the one-at-a-time solution
+
+
+@pytest.mark.parametrize("rad", [1e-4, 1e-6, 1e-8])
+def test_tiny_regular_hexagon_area_keeps_relative_accuracy(rad: float) -> None:
+    ang = np.arange(6) * np.pi / 3
+    r = Region(np.stack([-np.cos(ang), -np.sin(ang), np.full(6, rad)], axis=1))
+    # planar hexagon of inradius rad: 2 sqrt(3) rad^2, spherical correction O(rad^2)
+    assert r.area() == pytest.approx(2 * np.sqrt(3) * rad**2, rel=1e-7)
+
+
+@pytest.mark.parametrize("n", [10, 1000, 8000, 10**6])
+def test_thin_integer_lunes_and_wedges_are_exact(n: int) -> None:
+    lune = Region([[1, 0, 0], [-n, 1, 0]])
+    assert not lune.is_empty()
+    assert lune.area() == pytest.approx(2 * np.arctan2(1, n), rel=1e-12)
+    wedge = Region([[1, 0, 0], [-n, 1, 0], [0, 0, 1]])
+    assert wedge.area() == pytest.approx(np.arctan2(1, n), rel=1e-9)
+    _, areas = reduce_many([np.array([[1, 0, 0], [-n, 1, 0]])])
+    assert areas[0] == lune.area()
+
+
+@pytest.mark.parametrize("t", [1e-6, 1e-9, 1e-11])
+def test_thin_float_lune(t: float) -> None:
+    r = Region(np.array([[1.0, 0, 0], [-np.cos(t), np.sin(t), 0]]))
+    assert not r.is_empty()
+    assert r.area() == pytest.approx(2 * t, rel=1e-6)

@@ -128,3 +128,19 @@ def test_sampling_is_reproducible() -> None:
     assert r.sample(0, 1).shape == (0, 3)
     with pytest.raises(ValueError, match="non-negative"):
         r.sample(-1, 1)
+
+
+@pytest.mark.parametrize("rad", [3e-2, 1e-8])
+def test_small_polygons_use_exact_gnomonic_rejection(rad: float) -> None:
+    # regular hexagon of inradius `rad` around the pole: every fan triangle is small
+    ang = np.arange(6) * np.pi / 3
+    r = Region(np.stack([-np.cos(ang), -np.sin(ang), np.full(6, rad)], axis=1))
+    pts = r.sample(40_000, np.random.default_rng(17))
+    assert np.all(r.contains(pts, tol=1e-13))
+    # the disc of radius rad/2 (angular) about the pole holds area_disc / area_hexagon
+    dist = np.arctan2(np.hypot(pts[:, 0], pts[:, 1]), pts[:, 2])
+    disc = 4 * np.pi * np.sin(rad / 4) ** 2  # 2 pi (1 - cos(rad / 2)) without cancellation
+    p = disc / r.area()
+    assert stats.binomtest(int(np.sum(dist < rad / 2)), len(pts), p).pvalue > 1e-3
+    assert chi2_cells(r, cuts_through(np.array([0.0, 0.0, 1.0]),
+                                      np.random.default_rng(18), 3), pts) > 1e-3

@@ -2,7 +2,8 @@
 
 Polygons are fanned into spherical triangles from the interior direction; a triangle is
 picked with probability proportional to its area and sampled with Arvo's area-preserving
-map (J. Arvo, "Stratified sampling of spherical triangles", SIGGRAPH 1995). Hemispheres
+map (J. Arvo, "Stratified sampling of spherical triangles", SIGGRAPH 1995), or, for small
+triangles where Arvo's formulas cancel, by exact rejection in the gnomonic projection. Hemispheres
 and lunes are sampled in polar coordinates about their axis (Archimedes: the height is
 uniform).
 """
@@ -97,6 +98,39 @@ def arvo(
     return z[:, None] * b + np.sqrt(1.0 - z * z)[:, None] * perp2
 
 
+#: Triangles with every side shorter than this (radians) are sampled by gnomonic
+#: rejection instead of Arvo's map, whose formulas lose precision on tiny triangles.
+SMALL_TRIANGLE = 0.05
+
+
+def gnomonic_rejection(
+    a: np.ndarray, b: np.ndarray, c: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """Exact uniform points in small spherical triangles (one per row of a, b, c).
+
+    The gnomonic projection onto the plane tangent at ``a`` maps the triangle to a planar
+    triangle, and the sphere's area element is ``dA / |x|^3`` there. So: draw ``x``
+    uniformly in the planar triangle, keep it with probability ``1 / |x|^3`` (at least
+    ``cos^3(side)``), redraw the rejected ones. No cancellation at any size.
+    """
+    out = np.empty_like(a)
+    todo = np.arange(len(a))
+    while len(todo):
+        aa, bb, cc = a[todo], b[todo], c[todo]
+        db = bb / np.einsum("ij,ij->i", bb, aa)[:, None] - aa
+        dc = cc / np.einsum("ij,ij->i", cc, aa)[:, None] - aa
+        r = rng.random((2, len(todo)))
+        flip = r.sum(axis=0) > 1
+        r[:, flip] = 1 - r[:, flip]
+        off = r[0][:, None] * db + r[1][:, None] * dc
+        x = aa + off
+        n2 = np.einsum("ij,ij->i", x, x)
+        keep = rng.random(len(todo)) * n2**1.5 <= 1.0
+        out[todo[keep]] = x[keep] / np.sqrt(n2[keep])[:, None]
+        todo = todo[~keep]
+    return out
+
+
 def sample_polygon(
     unit_ordered: np.ndarray, centre: np.ndarray, m: int, rng: np.random.Generator
 ) -> np.ndarray:
@@ -105,6 +139,17 @@ def sample_polygon(
     cum = np.cumsum(areas)
     pick = np.searchsorted(cum, rng.random(m) * cum[-1], side="right")
     pick = np.minimum(pick, len(areas) - 1)
-    xi = rng.random((2, m))
-    w = arvo(a[pick], b[pick], c[pick], areas[pick], xi[0], xi[1])
-    return _normalise(w)
+    sides = np.stack(
+        [np.einsum("ij,ij->i", a, b), np.einsum("ij,ij->i", b, c), np.einsum("ij,ij->i", a, c)]
+    )
+    small = np.arccos(np.clip(sides.min(axis=0), -1.0, 1.0)) < SMALL_TRIANGLE
+    out = np.empty((m, 3))
+    use_small = small[pick]
+    if use_small.any():
+        ps = pick[use_small]
+        out[use_small] = gnomonic_rejection(a[ps], b[ps], c[ps], rng)
+    if (~use_small).any():
+        pl = pick[~use_small]
+        xi = rng.random((2, len(pl)))
+        out[~use_small] = _normalise(arvo(a[pl], b[pl], c[pl], areas[pl], xi[0], xi[1]))
+    return out

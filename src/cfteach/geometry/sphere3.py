@@ -12,6 +12,7 @@ polygon), which gives 2 pi for one constraint and ``2 pi - 2 theta`` for a lune.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,20 +92,48 @@ def _solve_small(
                 u = h / np.linalg.norm(h)
                 break
     if u is None:
-        for cand_u in (pf.sum(axis=0), cr[cand].sum(axis=0)):
-            if np.all(pf @ cand_u > tol):
-                uf = cand_u.astype(np.float64)
-                uf /= np.sqrt(uf @ uf)
-                if np.min(unit @ uf) > MARGIN_EPS:
-                    u = uf
+        for cand_u in _interior_candidates(pf, cr, cand, tol):
+            norm = float(np.sqrt(cand_u @ cand_u))
+            if norm == 0.0:
+                continue
+            if exact:
+                if np.all(pf @ cand_u > 0):  # an exact certificate
+                    u = cand_u / norm
                     break
+            elif np.min(unit @ cand_u) > MARGIN_EPS * norm:
+                u = cand_u / norm
+                break
     if u is None:
+        if exact:  # a full-dimensional region always passes one of the candidates
+            return _EMPTY
         u = interior_direction(p, unit, False, None)
         if u is None:
             return _EMPTY
     order = _order_from_pairs(p, exact, cand, d, unit, u)
     order = _canonical_start(p, order)
     return Solved3(False, order, u, polygon_area(unit[order]))
+
+
+def _interior_candidates(
+    pf: np.ndarray, cr: np.ndarray, cand: np.ndarray, tol: float
+) -> Iterator[np.ndarray]:
+    """Directions that are strictly inside whenever the region has an interior.
+
+    The sum of the rows; the sum of the corners (for a pointed cone, a positive
+    combination of all its extreme rays is interior); and, for a lune (corners only on
+    its axis ``a``), the sum of its two boundary directions ``+-(a x n_i)``.
+    """
+    yield pf.sum(axis=0)
+    yield cr[cand].sum(axis=0)
+    i, j = np.argwhere(cand)[0]
+    e = cross(cr[i, j][None, :], pf)  # directions in the lune's walls
+    if tol > 0:  # float rows: compare unit directions against the tolerance
+        norm = np.sqrt((e * e).sum(axis=1, keepdims=True))
+        e = np.divide(e, norm, out=np.zeros_like(e), where=norm > 0)
+    de = e @ pf.T
+    pos = (de >= -tol).all(axis=1)
+    neg = (de <= tol).all(axis=1)
+    yield e[pos].sum(axis=0) - e[neg].sum(axis=0)
 
 
 def _order_from_pairs(
@@ -142,12 +171,42 @@ def _order_from_pairs(
     return verts[_angular_order(unit[verts], u)].astype(np.intp)
 
 
+#: Below this area (sr) the Gauss-Bonnet sum ``2 pi - sum(angles)`` has lost digits to
+#: cancellation (absolute error ~1e-15); the area is then summed over fan triangles.
+SMALL_AREA = 1e-4
+
+
 def polygon_area(unit_ordered: np.ndarray) -> float:
-    """2 pi minus the cyclic sum of angles between consecutive (irredundant) unit normals."""
-    nxt = np.arange(1, len(unit_ordered) + 1)
+    """Area from the cyclically ordered irredundant unit normals.
+
+    Gauss-Bonnet: ``2 pi - sum_j angle(n_j, n_{j+1})``; a lune is ``2 (pi - theta)``
+    computed as twice the angle between ``n_1`` and ``-n_2`` (no cancellation), and small
+    polygons are re-measured as a fan of triangles (``fan_area``) to keep relative accuracy.
+    """
+    m = len(unit_ordered)
+    if m == 0:
+        return 4 * np.pi
+    if m == 1:
+        return 2 * np.pi
+    if m == 2:
+        return float(2 * _pair_angles(unit_ordered[0], -unit_ordered[1]))
+    nxt = np.arange(1, m + 1)
     nxt[-1] = 0
     ang = _pair_angles(unit_ordered, unit_ordered[nxt])
-    return max(2 * np.pi - math.fsum(ang.tolist()), 0.0)
+    area = 2 * np.pi - math.fsum(ang.tolist())
+    if area < SMALL_AREA:
+        area = fan_area(unit_ordered)
+    return max(area, 0.0)
+
+
+def fan_area(unit_ordered: np.ndarray) -> float:
+    """Sum of the fan triangles (centre, v_j, v_{j+1}) with a cancellation-free
+    Van Oosterom-Strackee formula; accurate in relative terms for tiny polygons."""
+    v = polygon_vertices(unit_ordered)
+    c = v.sum(axis=0)
+    c /= np.sqrt(c @ c)
+    w = np.roll(v, -1, axis=0)
+    return math.fsum(triangle_area(np.broadcast_to(c, v.shape), v, w).tolist())
 
 
 def _pair_angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -258,8 +317,12 @@ def polygon_vertices(unit_ordered: np.ndarray) -> np.ndarray:
 
 
 def triangle_area(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Solid angle of spherical triangles (Van Oosterom & Strackee 1983), vectorised."""
-    num = np.abs(np.einsum("...i,...i->...", a, np.cross(b, c)))
+    """Solid angle of spherical triangles (Van Oosterom & Strackee 1983), vectorised.
+
+    The triple product is taken as ``a . ((b - a) x (c - a))``: the differences of nearly
+    equal unit vectors are exact, so tiny triangles keep their relative accuracy.
+    """
+    num = np.abs(np.einsum("...i,...i->...", a, cross(b - a, c - a)))
     den = 1.0 + np.einsum("...i,...i->...", a, b) + np.einsum("...i,...i->...", b, c)
     den = den + np.einsum("...i,...i->...", c, a)
     return 2.0 * np.arctan2(num, den)
@@ -293,15 +356,24 @@ def _batch_chunk(pi: np.ndarray) -> list[Solved3 | None]:
     eye = np.eye(k, dtype=bool)
     cand = (d >= 0).all(axis=3) & ~eye & (cr != 0).any(axis=3)
     has = cand.any(axis=(1, 2))
+    # the candidates of _interior_candidates, checked exactly
     s1 = p.sum(axis=1)
     ok1 = (np.einsum("bkc,bc->bk", p, s1) > 0).all(axis=1)
     s2 = (cr * cand[..., None]).sum(axis=(1, 2))
     ok2 = (np.einsum("bkc,bc->bk", p, s2) > 0).all(axis=1)
-    u = np.where(ok1[:, None], s1, s2)
-    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+    pair0 = np.argmax(cand.reshape(b, -1), axis=1)
+    axis = cr.reshape(b, -1, 3)[np.arange(b), pair0]  # a corner: the axis if a lune
+    e = cross(axis[:, None, :], p)  # [b, k, 3]
+    de = np.einsum("bmc,blc->bml", e, p)
+    pos = (de >= 0).all(axis=2)
+    neg = (de <= 0).all(axis=2)
+    s3 = (e * pos[..., None]).sum(axis=1) - (e * neg[..., None]).sum(axis=1)
+    ok3 = (np.einsum("bkc,bc->bk", p, s3) > 0).all(axis=1)
+    u = np.where(ok1[:, None], s1, np.where(ok2[:, None], s2, s3))
+    u /= np.maximum(np.sqrt((u * u).sum(axis=1, keepdims=True)), 1e-300)
     unit = p / np.sqrt(p[..., 0] ** 2 + p[..., 1] ** 2 + p[..., 2] ** 2)[..., None]
-    marg = np.einsum("bkc,bc->bk", unit, u).min(axis=1)
-    good = has & (ok1 | ok2) & (marg > MARGIN_EPS)
+    nonempty = has & (ok1 | ok2 | ok3)
+    good = nonempty.copy()
     # hull edges: Binet-Cauchy betweenness, only on candidate pairs with extra zero dets
     bi, ii, jj = np.nonzero(cand)
     dd = d[bi, ii, jj]  # [P, k]
@@ -351,10 +423,12 @@ def _batch_chunk(pi: np.ndarray) -> list[Solved3 | None]:
     ang = _pair_angles(a, nb)
     res: list[Solved3 | None] = []
     for i in range(b):
-        if not has[i]:
+        if not nonempty[i]:
             res.append(_EMPTY)
         elif good[i]:
-            area = max(2 * np.pi - math.fsum(ang[i, : nverts[i]].tolist()), 0.0)
+            area = 2 * np.pi - math.fsum(ang[i, : nverts[i]].tolist())
+            if nverts[i] == 2 or area < SMALL_AREA:  # same branches as polygon_area
+                area = polygon_area(unit[i, order_fix[i, : nverts[i]]])
             res.append(Solved3(False, order_fix[i, : nverts[i]].copy(), u[i].copy(), area))
         else:
             res.append(None)
