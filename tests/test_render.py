@@ -199,6 +199,10 @@ def test_gif_has_one_frame_per_state_with_the_agent_moving(tmp_path: Path, skate
             rgb = np.asarray(im.convert("RGB"))
             got = np.array(pixel(rgb, 4, cell, 0.5, 0.6))
             assert np.abs(got - hex_rgb(st.AGENT_COLOR)).max() <= 8, (k, cell, got)
+    first = render.save_demo(skate_like, states, tmp_path / "f.png", cell_px=C, still="first")
+    rgb = np.asarray(Image.open(first).convert("RGB"))
+    assert pixel(rgb, 4, (4, 4), 0.5, 0.6) == hex_rgb(st.AGENT_COLOR)  # at the start
+    assert pixel(rgb, 4, (2, 3), 0.5, 0.5) == hex_rgb(st.TRAIL_COLOR)  # the path to come
     png = render.save_demo(skate_like, states, tmp_path / "demo.png", cell_px=C)
     rgb = np.asarray(Image.open(png).convert("RGB"))
     assert pixel(rgb, 4, (2, 3), 0.5, 0.6) == hex_rgb(st.AGENT_COLOR)

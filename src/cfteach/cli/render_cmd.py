@@ -86,12 +86,17 @@ def demos_cmd(
     domain: Annotated[
         str | None, typer.Option(help="Domain name or TOML file; default: the file's domain.")
     ] = None,
+    still: Annotated[
+        str, typer.Option(help="Stills (png/svg/txt): 'last' (the end) or 'first' (the start).")
+    ] = "last",
 ) -> None:
     """Draw every demonstration (or test) of a JSON file, one picture each."""
     from cfteach import domains, render
 
     if fmt not in _FORMATS:
         _fail(f"unknown format {fmt!r}; use one of {', '.join(_FORMATS)}")
+    if still not in ("first", "last"):
+        _fail(f"--still must be 'first' or 'last', got {still!r}")
     data = _read_json(file)
     if "demos" in data:
         items = [(f"demo{k}", d) for k, d in enumerate(data["demos"], start=1)]
@@ -111,11 +116,7 @@ def demos_cmd(
     for name, demo in items:
         layout = render.layout_from_instance(dom.instance(int(demo["env_index"])))
         path = out / f"{name}.{fmt}"
-        if fmt == "txt":
-            frames = render.demo_frames(layout, demo["states"])
-            path.write_text(render.to_text(frames[-1]) + "\n", encoding="utf-8")
-        else:
-            render.save_demo(layout, demo["states"], path)
+        render.save_demo(layout, demo["states"], path, still=still)
     typer.echo(f"Wrote {len(items)} pictures to {out}")
 
 

@@ -15,6 +15,7 @@ Typical use::
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -113,13 +114,19 @@ def save_demo(
     *,
     cell_px: int | None = None,
     frame_ms: int = 450,
+    still: str = "last",
 ) -> Path:
-    """A demonstration as an animated `.gif`, or its last frame (full trail) as `.png`/`.svg`."""
+    """A demonstration as an animated `.gif`, or one still with the whole trail as
+    `.png`/`.svg`/`.txt`: `still="last"` shows where it ends, `still="first"` shows the start
+    (objects where they begin, as a test looks to a player) with the path to come."""
     path = Path(path)
     frames = demo_frames(layout, states)
     if path.suffix.lower() == ".gif":
         return save_gif(frames, path, cell_px or 32, frame_ms=frame_ms)
-    return _write(frames[-1], path, cell_px or 48)
+    if still not in ("first", "last"):
+        raise ValueError(f"still must be 'first' or 'last', got {still!r}")
+    scene = frames[-1] if still == "last" else replace(frames[0], trail=frames[-1].trail)
+    return _write(scene, path, cell_px or 48)
 
 
 def demo_text(layout: Layout, states: Sequence[Mapping[str, Any]], *, color: bool = False) -> str:

@@ -146,7 +146,7 @@ def plot_belief_sphere(
             direction = np.array([1.0, -1.0, 0.6])
         elev, azim = _view_of(direction)
         # Look slightly from the side so the sphere reads as 3-D, the region still in front.
-        view = (max(-55.0, min(55.0, elev + 18.0)), azim + 28.0)
+        view = (max(-55.0, min(55.0, elev + 10.0)), azim + 18.0)
     el, az = np.radians(view[0]), np.radians(view[1])
     eye = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
 
@@ -196,7 +196,7 @@ def plot_belief_sphere(
         ax.text(*(w * 1.18), "w*", color="#b71c1c", fontsize=9, ha="center")
     ax.set_proj_type("ortho")
     ax.view_init(elev=view[0], azim=view[1])
-    ax.set_box_aspect((1, 1, 1), zoom=1.3)
+    ax.set_box_aspect((1, 1, 1), zoom=1.4)
     ax.set_xlim(-1.05, 1.05)
     ax.set_ylim(-1.05, 1.05)
     ax.set_zlim(-1.05, 1.05)

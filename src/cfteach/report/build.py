@@ -302,7 +302,9 @@ def _tests_view(
         items = []
         for k, test in enumerate(tests["tests"].get(level, []), start=1):
             file = f"test-{level}-{k}.png"
-            save_demo(layout_of(name, test), test["states"], img / file, cell_px=cell_px)
+            save_demo(
+                layout_of(name, test), test["states"], img / file, cell_px=cell_px, still="first"
+            )
             bar.update()
             items.append(
                 {
