@@ -128,7 +128,8 @@ class Region:
         return bool(self._solve().empty)
 
     def interior_point(self) -> np.ndarray | None:
-        """A unit vector strictly inside (margin > 1e-12), or None when empty."""
+        """A unit vector strictly inside, or None when empty (strictness is exact for
+        3-feature integer rows, a margin above 1e-12 otherwise)."""
         u = self._solve().interior
         return None if u is None else u.copy()
 
