@@ -304,3 +304,17 @@ def test_rate_limits(toy_study: Path, tmp_path: Path) -> None:
     assert [lim.allow("a", t) for t in (0, 1, 2, 10.5, 11.5, 11.6)] == [
         True, True, False, True, True, False]
     assert lim.allow("b", 2)
+
+
+def test_domain_intro_shows_wording_and_unplayed_examples(client: TestClient,
+                                                          toy_study: Path) -> None:
+    out = run_participant(client, PARAMS, stop_after=5)
+    st = out["state"]["step"]
+    assert st["kind"] == "domain_intro"
+    study = load_study(toy_study)
+    # Toy domains get the generic wording built from their feature names.
+    assert st["info"]["actions"] == ["mud", "battery", "step"]
+    assert 1 <= len(st["examples"]) <= 3
+    starts = [(d["layout"], d["states"][0]) for cur in study["curricula"][st["domain"]].values()
+              for d in cur]
+    assert all((ex["layout"], ex["state"]) in starts for ex in st["examples"])

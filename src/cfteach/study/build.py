@@ -66,7 +66,8 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
         instances = src.domain.instances()
         text = domain_text(name, tuple(src.domain.feature_names))
         info[name] = {**text, "feature_names": list(src.domain.feature_names),
-                      "weights": [float(x) for x in src.domain.weights], "actions": list(actions)}
+                      "weights": [float(x) for x in src.domain.weights],
+                      "action_names": list(actions)}
         curricula[name] = {}
         for cond in CONDITIONS:
             cur = src.curricula[cond]

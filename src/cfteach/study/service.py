@@ -135,6 +135,14 @@ class StudyService:
                         attempts_allowed=s["practice_attempts"])
         elif kind == "domain_intro":
             step["info"] = _public_info(s["domain_info"][step["domain"]])
+            # A few configurations of this game: the demonstrations' layouts, unplayed.
+            seen, examples = set(), []
+            for d in s["curricula"][step["domain"]][row.condition]:
+                key = repr(d["layout"])
+                if key not in seen and len(examples) < 3:
+                    seen.add(key)
+                    examples.append({"layout": d["layout"], "state": d["states"][0]})
+            step["examples"] = examples
         elif kind == "demos":
             demos = s["curricula"][step["domain"]][row.condition]
             step.update(info=_public_info(s["domain_info"][step["domain"]]), demos=demos,

@@ -351,8 +351,16 @@ const pages = {
 
   domain_intro(st) {
     const info = st.step.info;
+    const examples = h("div", { class: "examples" });
+    for (const ex of st.step.examples || []) {
+      const box = h("div", { class: "example" });
+      box.appendChild(drawGrid(ex.layout, ex.state, { label: "example configuration" }));
+      examples.appendChild(box);
+    }
     app.replaceChildren(
       h("h1", { text: "Welcome to a new game!" }),
+      h("p", { text: "Here are a few configurations that you may see in this section." }),
+      examples,
       h("p", { text: `Task: ${info.task}` }),
       h("p", { text: `The following actions affect the ${info.effects_word}:` }),
       h("table", { class: "effects" },
