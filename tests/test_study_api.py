@@ -318,3 +318,32 @@ def test_domain_intro_shows_wording_and_unplayed_examples(client: TestClient,
     starts = [(d["layout"], d["states"][0]) for cur in study["curricula"][st["domain"]].values()
               for d in cur]
     assert all((ex["layout"], ex["state"]) in starts for ex in st["examples"])
+
+
+def test_export_reads_back_in_the_analysis_and_marks_abandoned(toy_study: Path,
+                                                               tmp_path: Path) -> None:
+    from datetime import timedelta
+
+    from sqlalchemy import update
+
+    from cfteach.analysis.io import load_export
+    from cfteach.study.models import Session, utcnow
+
+    db = f"sqlite:///{tmp_path / 'a.db'}"
+    app = create_app(toy_study, db, seed=1)
+    with TestClient(app) as c:
+        run_participant(c, PARAMS)
+        run_participant(c, {**PARAMS, "prolific_pid": "idle01"}, stop_after=8)
+        run_participant(c, {**PARAMS, "prolific_pid": "busy01"}, stop_after=8)
+    svc = app.state.service
+    with svc.Session() as s, s.begin():
+        s.execute(update(Session).where(Session.prolific_pid == "idle01")
+                  .values(last_active_at=utcnow() - timedelta(hours=3)))
+    svc.engine.dispose()
+    export_csv(db, tmp_path / "out")
+    status = {r["prolific_pid"]: r["status"] for r in _read(tmp_path / "out" /
+                                                            "participants.csv")}
+    assert status == {PARAMS["prolific_pid"]: "completed", "idle01": "abandoned",
+                      "busy01": "in_progress"}
+    ex = load_export(tmp_path / "out")  # the analysis side's loader and validator
+    assert len(ex.participants) == 3 and len(ex.tests) == 18
