@@ -112,3 +112,27 @@ def test_area_curves_plot_each_conditions_series():
     assert y[0] == pytest.approx(2 * math.pi)  # the prior w_step <= 0 is a hemisphere
     assert list(y[1:]) == [2.0, 0.5]
     assert fig.axes[0].get_yscale() == "log"
+
+
+def test_region_vertices_of_the_octant_are_its_three_axes():
+    verts = bel.region_vertices(np.array([[-1, 0, 0], [0, 1, 0], [0, 0, -1]], float))
+    expected = {(-1, 0, 0), (0, 1, 0), (0, 0, -1)}
+    assert {tuple(int(round(x)) for x in v) for v in verts} == expected
+    assert bel.region_radius(np.array([[0, 0, -1]], float)) is None  # a hemisphere
+
+
+def test_tiny_regions_get_a_zoom_inset_that_shows_them():
+    # a thin wedge around w = (0, 0, -1): |x| <= 0.01 |z|, |y| <= 0.01 |z| (about 1 degree)
+    normals = np.array([[100, 0, -1], [-100, 0, -1], [0, 100, -1], [0, -100, -1]], float)
+    radius = bel.region_radius(normals)
+    assert radius == pytest.approx(math.atan(0.01 * math.sqrt(2)), rel=1e-6)
+    fig = bel.plot_belief_sphere(normals, w_true=[0, 0, -1], resolution=24)
+    assert len(fig.axes) == 2
+    inset = fig.axes[1]
+    image = inset.get_images()[0].get_array()
+    h, w = image.shape[:2]
+    centre = np.asarray(image[h // 2, w // 2])
+    assert np.allclose(centre, bel.BELIEF_COLOR)  # the region fills the inset's middle
+    assert np.allclose(np.asarray(image[2, 2]), [1, 1, 1, 1])  # and not its corner
+    big = bel.plot_belief_sphere([[-1, 0, 0], [0, 1, 0], [0, 0, -1]], resolution=24)
+    assert len(big.axes) == 1

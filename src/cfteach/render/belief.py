@@ -115,9 +115,13 @@ def plot_belief_sphere(
     resolution: int = 72,
     ax: Any = None,
     view: tuple[float, float] | None = None,
+    zoom: bool | None = None,
 ) -> Any:
     """Draw a belief region (green) on the unit sphere, optionally a BEC region (yellow), the
-    true weights (red star) and sampled human models (red dots). Returns the Figure."""
+    true weights (red star) and sampled human models (red dots). Returns the Figure.
+
+    `zoom` adds an inset magnifying the belief region (gnomonic view around it); by default
+    it is added when the region spans less than ~10 degrees, where it would be a dot."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -202,9 +206,102 @@ def plot_belief_sphere(
     ax.set_zlim(-1.05, 1.05)
     ax.set_axis_off()
     _place_labels(fig, ax, labels)
+    extent = region_radius(nb)
+    if zoom is None:
+        zoom = extent is not None and extent < np.radians(10)
+    if zoom and extent is not None:
+        _zoom_inset(fig, nb, ne, w_true, samples, extent)
     if title:
         ax.set_title(title, fontsize=10)
     return fig
+
+
+def region_vertices(normals: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Corners of a region: unit vectors on two constraint planes that satisfy all others."""
+    units = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    k = len(units)
+    if k < 2:
+        return np.zeros((0, 3))
+    i, j = np.triu_indices(k, 1)
+    cross = np.cross(units[i], units[j])
+    norm = np.linalg.norm(cross, axis=1)
+    cross = cross[norm > 1e-12] / norm[norm > 1e-12, None]
+    cand = np.vstack([cross, -cross])
+    return cand[np.all(cand @ units.T >= -tol, axis=1)]
+
+
+def region_radius(normals: np.ndarray) -> float | None:
+    """Largest angle (radians) from the corners' mean direction to a corner; None when the
+    region has no corners (a hemisphere or lune) or is not small enough to be bounded."""
+    if len(normals) < 3:
+        return None
+    verts = region_vertices(normals)
+    if len(verts) < 3:
+        return None
+    c = verts.mean(axis=0)
+    if np.linalg.norm(c) < 1e-9:
+        return None
+    c /= np.linalg.norm(c)
+    return float(np.arccos(np.clip(verts @ c, -1, 1)).max())
+
+
+def _zoom_inset(
+    fig: Any,
+    nb: np.ndarray,
+    ne: np.ndarray | None,
+    w_true: Any,
+    samples: Any,
+    extent: float,
+    pixels: int = 160,
+) -> None:
+    """A magnified, flat (gnomonic) view of a small belief region in the figure's corner:
+    great circles are straight lines there, so the region keeps its true polygon shape."""
+    verts = region_vertices(nb)
+    c = verts.mean(axis=0)
+    c /= np.linalg.norm(c)
+    helper = np.eye(3)[np.argmin(np.abs(c))]
+    u = np.cross(c, helper)
+    u /= np.linalg.norm(u)
+    v = np.cross(c, u)
+    half = 1.6 * np.tan(extent) + 1e-9
+    g = np.linspace(-half, half, pixels)
+    gx, gy = np.meshgrid(g, g[::-1])
+    pts = c + gx[..., None] * u + gy[..., None] * v
+    pts /= np.linalg.norm(pts, axis=-1, keepdims=True)
+    colors = np.broadcast_to(np.array([1.0, 1.0, 1.0, 1.0]), pts.shape[:-1] + (4,)).copy()
+    in_b = inside(nb, pts)
+    colors[in_b] = BELIEF_COLOR
+    if ne is not None:
+        in_e = inside(ne, pts)
+        colors[in_e & ~in_b] = BEC_COLOR
+        colors[in_e & in_b] = BOTH_COLOR
+    inset = fig.add_axes((0.66, 0.03, 0.32, 0.32))
+    inset.imshow(colors, extent=(-half, half, -half, half), interpolation="nearest")
+
+    def flat(p: np.ndarray) -> np.ndarray:
+        p = np.atleast_2d(np.asarray(p, dtype=float))
+        p = p / np.linalg.norm(p, axis=1, keepdims=True)
+        d = p @ c
+        q = p / np.where(d > 1e-9, d, np.nan)[:, None]
+        return np.stack([q @ u, q @ v], axis=1)
+
+    corners = flat(verts)
+    order = np.argsort(np.arctan2(corners[:, 1], corners[:, 0]))
+    ring = corners[np.r_[order, order[:1]]]
+    inset.plot(ring[:, 0], ring[:, 1], color="#1b5e20", lw=1.2)
+    if samples is not None:
+        sp = flat(np.asarray(samples, dtype=float).reshape(-1, 3))
+        inset.scatter(sp[:, 0], sp[:, 1], color="#d62728", s=8)
+    if w_true is not None:
+        wp = flat(w_true)
+        inset.scatter(wp[:, 0], wp[:, 1], color="#b71c1c", marker="*", s=60)
+    inset.set_xlim(-half, half)
+    inset.set_ylim(-half, half)
+    inset.set_xticks([])
+    inset.set_yticks([])
+    for spine in inset.spines.values():
+        spine.set_color("#666666")
+    inset.set_title(f"zoom: {np.degrees(2 * half):.2g}° wide", fontsize=7, pad=2)
 
 
 def _place_labels(fig: Any, ax: Any, labels: list[tuple[np.ndarray, str]]) -> None:
