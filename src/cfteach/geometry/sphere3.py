@@ -81,8 +81,7 @@ def _solve_small(
     d = cr @ pf.T
     tol = 0.0 if exact else _FLOAT_TOL
     cand = (d >= -tol).all(axis=2)
-    np.fill_diagonal(cand, False)
-    cand &= (np.abs(cr) > tol).any(axis=2)
+    cand &= (np.abs(cr) > tol).any(axis=2) if tol else cr.any(axis=2)  # also drops i == j
     if not cand.any():
         return _EMPTY
     u = None
@@ -155,7 +154,7 @@ def _order_from_pairs(
         e2 = g[ii, :] * gd[jj, None] - g[jj, :] * g[ii, jj][:, None]
         good = np.all(~zero | ((e1 >= -tol) & (e2 >= -tol)), axis=1)
         ii, jj = ii[good], jj[good]
-    verts = np.unique(ii)
+    verts = np.asarray(sorted(set(ii.tolist())), dtype=np.intp)
     if len(verts) <= 2:
         return verts.astype(np.intp)
     if len(ii) == len(verts):
@@ -220,7 +219,7 @@ def _pair_angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _canonical_start(rows: np.ndarray, order: np.ndarray) -> np.ndarray:
     """Rotate the cycle so it starts at the smallest row (canonical rows are sorted)."""
-    if len(order) <= 1:
+    if len(order) <= 1 or order[0] == order.min():
         return order
     first = int(np.argmin(order))
     return np.concatenate([order[first:], order[:first]])
