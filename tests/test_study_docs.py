@@ -62,3 +62,31 @@ def test_init_rejects_bad_inputs_with_clear_errors(tmp_path: Path) -> None:
     src[2].tests["schema"] = "something/9"
     with pytest.raises(ValueError, match="expected schema 'cfteach.tests/1'"):
         init_study(tmp_path, src)
+
+
+def test_cli_init_from_reproduce_layout(tmp_path: Path) -> None:
+    """`study init --from DIR` reads DIR/<domain>/<condition>.json and DIR/<domain>/tests.json
+    (the layout `cfteach reproduce --out DIR` writes) for the real domains."""
+    import json
+
+    from cfteach.study.build import preview_sources
+    from cfteach.study.config import load_study
+
+    src_dir = tmp_path / "results"
+    for src in preview_sources(seed=1):
+        folder = src_dir / src.domain.name
+        folder.mkdir(parents=True)
+        for cond, cur in src.curricula.items():
+            (folder / f"{cond}.json").write_text(json.dumps(cur))
+        (folder / "tests.json").write_text(json.dumps(src.tests))
+    r = CliRunner().invoke(app, ["study", "init", "--from", str(src_dir), "--out",
+                                 str(tmp_path / "study"), "--completion-code", "ABC123"])
+    assert r.exit_code == 0, r.output
+    study = load_study(tmp_path / "study")
+    assert study["domains"] == ["delivery", "tiles", "skateboard"]
+    assert study["completion"]["completed"] == "ABC123"
+    assert study["domain_info"]["tiles"]["keys"] == ["up", "down", "left", "right"]
+    (src_dir / "tiles" / "proposed.json").unlink()
+    r = CliRunner().invoke(app, ["study", "init", "--from", str(src_dir), "--out",
+                                 str(tmp_path / "study2")])
+    assert r.exit_code != 0 and "proposed.json" in r.output
