@@ -459,3 +459,21 @@ def test_thin_float_lune(t: float) -> None:
     r = Region(np.array([[1.0, 0, 0], [-np.cos(t), np.sin(t), 0]]))
     assert not r.is_empty()
     assert r.area() == pytest.approx(2 * t, rel=1e-6)
+
+
+def test_regions_pickle_and_do_not_leak_state() -> None:
+    import pickle
+
+    r = Region([[1, 1, 0], [0, -1, -4], [-1, 0, 2]])
+    area = r.area()
+    q = pickle.loads(pickle.dumps(r))
+    assert q.area() == area and np.array_equal(q.reduced(), r.reduced())
+    red = r.reduced()
+    red[0, 0] = 99  # callers get copies
+    rows = r.rows
+    rows[0, 0] = 99
+    u = r.interior_point()
+    assert u is not None
+    u[0] = 5.0
+    assert r.reduced()[0, 0] != 99 and r.rows[0, 0] != 99
+    assert r.contains(r.interior_point())
