@@ -128,6 +128,9 @@ def test_sampling_is_reproducible() -> None:
     assert r.sample(0, 1).shape == (0, 3)
     with pytest.raises(ValueError, match="non-negative"):
         r.sample(-1, 1)
+    with pytest.raises(ValueError, match="integer"):
+        r.sample(2.5, 1)  # type: ignore[arg-type]
+    assert r.sample(np.int64(3), 1).shape == (3, 3)
 
 
 @pytest.mark.parametrize("rad", [3e-2, 1e-8])

@@ -210,8 +210,9 @@ class Region:
         Exact and O(1) per sample for F = 3 (triangle fan + Arvo's map); hit-and-run
         (approximate, MCMC) for F > 3. Reproducible for a given ``rng`` seed/Generator.
         """
-        if m < 0:
-            raise ValueError(f"m must be non-negative, got {m}")
+        if isinstance(m, bool) or not isinstance(m, int | np.integer) or m < 0:
+            raise ValueError(f"m must be a non-negative integer, got {m!r}")
+        m = int(m)
         rng = np.random.default_rng(rng)
         s = self._solve()
         if s.empty:

@@ -9,10 +9,12 @@ region shrinks; ``sample_uniform`` draws exactly uniform samples instead.
 
 from __future__ import annotations
 
+import sys
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from ._normalize import as_matrix
 from .region import Region
@@ -77,7 +79,9 @@ def sample_reference_grid(
     v_lo, v_hi = (1 - np.cos(ele.min())) / 2, (1 - np.cos(ele.max())) / 2
     density = _START_DENSITY
     fine = np.zeros((0, 3))
+    bar = tqdm(desc="fine grid density", unit="step", leave=False, disable=not sys.stderr.isatty())
     while density <= max(max_density, _START_DENSITY):
+        bar.update()
         theta = 2 * np.pi * np.linspace(u_lo, u_hi, density * m)
         phi = np.arccos(1 - 2 * np.linspace(v_lo, v_hi, density * m))
         # meshgrid(theta, phi) flattened row-major (phi outer); the trigonometry is done on
@@ -90,10 +94,13 @@ def sample_reference_grid(
         fine = fine.reshape(-1, 3)
         fine = fine[_feasible(fine, cons)]
         if len(fine) == m:
+            bar.close()
             return fine
         if len(fine) > m:
+            bar.close()
             return fine[greedy_k_centres(fine, m)]
         density += 1
+    bar.close()
     return fine
 
 
