@@ -153,7 +153,8 @@ class StudyService:
         elif kind == "test":
             t = s["tests"][step["domain"]][row.test_set][step.pop("test_index")]
             step.update(browser_game(t), info=_public_info(s["domain_info"][step["domain"]]),
-                        confidence=LIKERT["confidence"])
+                        confidence=LIKERT["confidence"],
+                        n_trials=len(s["tests"][step["domain"]][row.test_set]))
         elif kind == "feedback":
             n = db.scalar(select(func.count()).select_from(TestResponse).where(
                 TestResponse.session_pk == row.id, TestResponse.domain == step["domain"],

@@ -505,15 +505,16 @@ const pages = {
     });
     app.replaceChildren(
       h("h1", { text: "Participant gameplay" }),
-      h("p", { id: "trial", text: `Game ${s.trial} of 6` }),
-      h("p", { text: "Now it's your turn to play six games! Please demonstrate how you would " +
+      h("p", { id: "trial", text: `Game ${s.trial} of ${s.n_trials}` }),
+      h("p", { text: `Now it's your turn to play ${s.n_trials === 6 ? "six" : s.n_trials} ` +
+        "games! Please demonstrate how you would " +
         "complete this game's task while minimizing Chip's energy loss. You may reset at any " +
         "time before the game ends if you think you've made a mistake." }),
       h("p", { text: `Task: ${s.info.task}` }),
       h("div", { class: "play" }, board, keyLegend(s.info.keys)),
       h("p", { text: "Please answer the question below on the confidence of your gameplay " +
         "after providing your demonstration. For fun: We will let you know how well you did " +
-        "at the end of all six games." }),
+        "at the end of all the games." }),
       form);
     activate(game);
   },
