@@ -216,3 +216,25 @@ def test_tests_overlaps_levels_and_exclusion(skate_ref) -> None:  # noqa: ANN001
                                                              for t in levels["low"])
     assert len(j["candidates"]) == demo_set(dom, "reference").D - len(j["excluded"])
     assert j["cluster_centres"] == sorted(j["cluster_centres"])
+
+
+@pytest.mark.parametrize("name,profile", [("skateboard", "reference"), ("delivery", "reference"),
+                                          ("tiles", "default")])
+def test_scot_broadcast_equals_generic_enumeration(name: str, profile: str) -> None:
+    """The 3-constraint fast path vs the generic chunked enumeration (sorted indices), on
+    sub-groups small enough for the generic path; the groups include shared demos."""
+    from cfteach.teaching import baseline as B
+
+    ds = demo_set(load(name), profile)
+    rng = np.random.default_rng(2)
+    sets = B.one_step_sets(ds)
+    pol = Region(np.vstack([s for s in sets.values() if len(s)])).reduced()
+    groups = []
+    for c in pol:
+        members = np.array([d for d in range(ds.D) if len(sets[d])
+                            and np.any(np.all(sets[d] == c, axis=1))])
+        groups.append(np.sort(rng.choice(members, size=min(25, len(members)), replace=False)))
+    # force a few shared members so the duplicate-handling branch runs
+    groups[1] = np.union1d(groups[1], groups[0][:2])
+    groups[2] = np.union1d(groups[2], groups[0][:1])
+    assert B._scot3(ds, groups) == B._scot_generic(ds, groups)

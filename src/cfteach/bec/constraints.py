@@ -169,14 +169,17 @@ class _Pairs:
         mu = [np.zeros(n) for _ in range(self.F)]
         neg = np.where(self.tied, 0.0, -np.inf)
         real = self.real.reshape(-1)
+        row = np.arange(n) * self.A
         for _ in range(MAX_STEPS):
             cand = [phi[f] + mu[f][self.flat_nxt] for f in range(self.F)]  # [P, S, A] each
             val = neg.copy()
             for f in range(self.F):
                 val += w[f] * cand[f]
-            a = np.argmax(val, axis=-1)[..., None]
-            mu = [np.where(real, np.take_along_axis(cand[f], a, axis=-1).reshape(-1), 0.0)
-                  for f in range(self.F)]
+            pick = row + np.argmax(val, axis=-1).reshape(-1)
+            new = [np.where(real, cand[f].reshape(-1)[pick], 0.0) for f in range(self.F)]
+            if all(np.array_equal(a, b) for a, b in zip(new, mu, strict=True)):
+                break  # a fixed point: longer horizons choose the same trajectories
+            mu = new
         out = np.stack(mu, axis=-1)
         return np.rint(out).astype(np.int64).reshape(self.P, self.S, self.F)
 
@@ -187,6 +190,9 @@ class _Pairs:
         for k in range(1, MAX_STEPS + 1):
             tot = np.where(self.tied, N[k - 1][self.flat_nxt], 0).sum(axis=-1).reshape(-1)
             N[k] = np.where(real, np.minimum(tot, cap), 1)
+            if np.array_equal(N[k], N[k - 1]):
+                N[k + 1 :] = N[k]  # a fixed point of the recursion
+                break
         return N
 
     def reference_first11(self, w_true: np.ndarray):  # noqa: ANN201
@@ -212,6 +218,8 @@ class _Pairs:
         sink = self.sink
         for k in range(MAX_STEPS, 0, -1):
             live = (cur - base) != sink
+            if not live.any():
+                break
             nxt = flat_nxt[cur]  # [n, R, A]
             cnt = np.where(tied[cur], N[k - 1][nxt], 0)
             cum = np.cumsum(cnt, axis=-1)

@@ -52,6 +52,11 @@ def scot(ds: DemoSet) -> list[int]:
             raise RuntimeError(f"no demonstration's minimal set contains the policy-level "
                                f"constraint {c.tolist()}")
         groups.append(np.array(members, dtype=np.int64))
+    return _scot3(ds, groups) if len(groups) == 3 else _scot_generic(ds, groups)
+
+
+def _scot_generic(ds: DemoSet, groups: list[np.ndarray]) -> list[int]:
+    """SCOT for any number of constraints: the product in chunks, indices sorted per combo."""
     union = np.unique(np.concatenate(groups))
     pos = {int(d): i for i, d in enumerate(union.tolist())}
     Dm = dissimilarity_matrix(ds, union, union)
@@ -74,6 +79,46 @@ def scot(ds: DemoSet) -> list[int]:
     combo = np.unravel_index(best_key[2], shape)
     chosen = {int(union[g[i]]) for g, i in zip(local, combo, strict=True)}
     return sorted(chosen)
+
+
+def _sorted_pair_d(ds: DemoSet, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """D(min, max) for every (a[i], b[j]): the pair in ascending demo index order."""
+    dab = dissimilarity_matrix(ds, a, b)
+    dba = dissimilarity_matrix(ds, b, a).T
+    return np.where(a[:, None] <= b[None, :], dab, dba)
+
+
+def _scot3(ds: DemoSet, groups: list[np.ndarray]) -> list[int]:
+    """SCOT for three policy-level constraints, scored on the whole product by broadcasting
+    (all dissimilarities and complexities are integers, so the sums are exact)."""
+    g1, g2, g3 = groups
+    comp = visual_arrays(ds).complexity.astype(float)
+    t12, t13, t23 = _sorted_pair_d(ds, g1, g2), _sorted_pair_d(ds, g1, g3), \
+        _sorted_pair_d(ds, g2, g3)
+    e12 = g1[:, None] == g2[None, :]
+    e13 = g1[:, None] == g3[None, :]
+    e23 = g2[:, None] == g3[None, :]
+    tot = t12[:, :, None] + t13[:, None, :] + t23[None, :, :]
+    csum = comp[g1][:, None, None] + comp[g2][None, :, None] + comp[g3][None, None, :]
+    vis = tot / 3
+    cmx = csum / 3
+    dup = e12[:, :, None] | e13[:, None, :] | e23[None, :, :]
+    if dup.any():
+        i, j, k = np.nonzero(dup)
+        a, b, c = g1[i], g2[j], g3[k]
+        trip = np.sort(np.stack([a, b, c], axis=1), axis=1)
+        single = (trip[:, 0] == trip[:, 2])
+        x = trip[:, 0]
+        y = np.where(trip[:, 0] == trip[:, 1], trip[:, 2], trip[:, 1])
+        dxy = np.array([dissimilarity_matrix(ds, [p], [q])[0, 0] for p, q in zip(x, y,
+                                                                               strict=True)])
+        vis[i, j, k] = np.where(single, np.inf, dxy)
+        cmx[i, j, k] = np.where(single, comp[x], (comp[x] + comp[y]) / 2)
+    best = vis.min()
+    cm = np.where(vis == best, cmx, np.inf)
+    o = int(np.flatnonzero((vis == best).ravel() & (cm.ravel() == cm.min()))[0])
+    i, j, k = np.unravel_index(o, vis.shape)
+    return sorted({int(g1[i]), int(g2[j]), int(g3[k])})
 
 
 def _score(s: np.ndarray, Dm: np.ndarray, comp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
