@@ -201,7 +201,7 @@ def test_reduction_semantics_primitive_dedup_zero() -> None:
 
 def test_reduction_matches_reference_lp_method() -> None:
     rng = np.random.default_rng(3)
-    for _ in range(120):
+    for _ in range(60):
         rows = feasible_int_set(rng, int(rng.integers(2, 16)), hi=int(rng.integers(1, 7)))
         rows = np.vstack([rows, rows[: int(rng.integers(0, 4))] * 2])  # duplicates
         r = Region(rows)
@@ -213,7 +213,7 @@ def test_reduction_matches_reference_lp_method() -> None:
 def test_reduced_region_is_the_same_region() -> None:
     rng = np.random.default_rng(4)
     pts = random_unit(rng, 20_000)
-    for _ in range(40):
+    for _ in range(25):
         rows = feasible_int_set(rng, int(rng.integers(3, 30)))
         r = Region(rows)
         red = Region(r.reduced())
