@@ -477,3 +477,18 @@ def test_regions_pickle_and_do_not_leak_state() -> None:
     u[0] = 5.0
     assert r.reduced()[0, 0] != 99 and r.rows[0, 0] != 99
     assert r.contains(r.interior_point())
+
+
+def test_intersection_areas_match_single_regions() -> None:
+    from cfteach.geometry import intersection_areas
+
+    rng = np.random.default_rng(11)
+    belief = Region([[0, 0, -1], [1, 1, 0]])
+    row_sets = [rng.integers(-3, 4, size=(int(rng.integers(0, 6)), 3)) for _ in range(200)]
+    clear_cache()
+    got = intersection_areas(belief, row_sets)
+    clear_cache()
+    expect = [Region(np.vstack([belief.reduced(), r])).area() for r in row_sets]
+    assert got.tolist() == expect
+    assert np.all(got <= belief.area() + 1e-12)
+    assert intersection_areas(belief, []).shape == (0,)
