@@ -129,9 +129,7 @@ def built(tmp_path_factory) -> tuple[Path, Path]:
     out = tmp_path_factory.mktemp("report")
     results = make_results()
     write_results(out, results)
-    index = build_report(
-        out, results, meta={"profile": "default", "seed": 0}, sphere_resolution=24, progress=False
-    )
+    index = build_report(out, results, sphere_resolution=24, progress=False)
     return out, index
 
 
@@ -172,15 +170,13 @@ def test_report_shows_gains_overlaps_and_summary(built):
     assert "gain <b>4.5</b>" in html  # proposed's first demo: 1.5 + 3
     assert "overlap <b>0.2</b>" in html  # the high test: 1.2 - 1.0
     summary = html.split('class="summary-curricula"')[1].split("</table>")[0]
-    rows = re.findall(
-        r"<tr><td class=\"l\">skateboard</td><td class=\"l\">(\w+)</td>"
-        r"<td>(\d+)</td>\s*<td>([\d.]+)</td><td>([\d.]+)</td>",
-        summary,
-    )
-    assert [r[0] for r in rows] == ["baseline", "feature_only", "counterfactual_only", "proposed"]
+    cells = re.findall(r'<td data-cell="(\w+)"><b>(\d+)</b> · ([\d.]+) · ×([\d.]+)</td>', summary)
+    assert [c[0] for c in cells] == ["baseline", "feature_only", "counterfactual_only", "proposed"]
+    assert all(c[1] == "2" for c in cells)
     # total knowledge gain = product of the demos' gains (baseline: 1.5 * 1.2)
-    assert float(rows[0][3]) == pytest.approx(1.8)
-    assert float(rows[0][2]) == pytest.approx(math.pi / 2, rel=1e-3)
+    assert float(cells[0][3]) == pytest.approx(1.8)
+    assert float(cells[0][2]) == pytest.approx(math.pi / 2, rel=1e-3)
+    assert "profile <b>default</b>" in html and "seed <b>0</b>" in html  # read from the JSON
 
 
 def test_results_round_trip_through_files(built):

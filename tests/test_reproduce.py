@@ -199,7 +199,11 @@ def test_report_only_rebuilds_from_the_json(out):
     (out / "index.html").unlink()
     result = CliRunner().invoke(app, ["reproduce", "--out", str(out), "--report-only"])
     assert result.exit_code == 0, result.output
-    assert (out / "index.html").is_file()
+    html = (out / "index.html").read_text(encoding="utf-8")
+    run = json.loads((out / "run.json").read_text())
+    assert run["schema"] == "cfteach.run/1" and run["domains"] == ["skateboard"]
+    assert run["profile"] == "default" and run["seed"] == 0 and run["seconds"] > 0
+    assert "profile <b>default</b>" in html and "computed in" in html
 
 
 def test_unknown_domain_is_a_clear_error(tmp_path):

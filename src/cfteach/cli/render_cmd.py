@@ -167,13 +167,13 @@ def report_cmd(
     out: Annotated[Path, typer.Argument(help="Directory with <domain>/*.json results.")],
 ) -> None:
     """Rebuild pictures and index.html from the JSON files in a results directory."""
-    from cfteach.report import build_report, load_results
+    from cfteach.report import build_report, load_meta, load_results
 
     try:
         results = load_results(out)
     except (OSError, ValueError) as exc:
         _fail(str(exc))
-    typer.echo(f"Report: {build_report(out, results)}")
+    typer.echo(f"Report: {build_report(out, results, meta=load_meta(out))}")
 
 
 def register(app: typer.Typer) -> None:

@@ -45,7 +45,7 @@ def reproduce(
 ) -> None:
     """Run every condition and test selection for the domains; write JSON, pictures and a
     self-contained index.html report."""
-    from cfteach.report import build_report, load_results
+    from cfteach.report import build_report, load_meta, load_results
     from cfteach.report.reproduce import reproduce as run
 
     if report_only:
@@ -53,7 +53,7 @@ def reproduce(
             results = load_results(out)
         except (OSError, ValueError) as exc:
             raise typer.BadParameter(str(exc), param_hint="--out") from exc
-        index = build_report(out, results)
+        index = build_report(out, results, meta=load_meta(out))
         typer.echo(f"Report: {index}")
         return
     try:

@@ -11,8 +11,18 @@ from cfteach.report.build import (
     CONDITIONS,
     DomainResults,
     build_report,
+    load_meta,
     load_results,
     write_results,
+    write_run,
 )
 
-__all__ = ["CONDITIONS", "DomainResults", "build_report", "load_results", "write_results"]
+__all__ = [
+    "CONDITIONS",
+    "DomainResults",
+    "build_report",
+    "load_meta",
+    "load_results",
+    "write_results",
+    "write_run",
+]

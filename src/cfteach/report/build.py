@@ -96,11 +96,39 @@ def _dump(path: Path, data: Mapping[str, Any]) -> Path:
     return path
 
 
+RUN_FILE = "run.json"
+RUN_SCHEMA = "cfteach.run/1"
+
+
+def write_run(out_dir: str | Path, meta: Mapping[str, Any]) -> Path:
+    """Record how a results folder was made (domain order, profile, seed, seconds)."""
+    from cfteach import __version__
+
+    return _dump(Path(out_dir) / RUN_FILE, {"schema": RUN_SCHEMA, "version": __version__, **meta})
+
+
+def load_meta(out_dir: str | Path) -> dict[str, Any]:
+    """`run.json` of a results folder (without its schema tag), or {} if there is none."""
+    path = Path(out_dir) / RUN_FILE
+    if not path.is_file():
+        return {}
+    data = json.loads(path.read_text(encoding="utf-8"))
+    if data.get("schema") != RUN_SCHEMA:
+        raise ValueError(f"{path}: not a {RUN_SCHEMA} file")
+    return {k: v for k, v in data.items() if k != "schema"}
+
+
 def load_results(out_dir: str | Path) -> dict[str, DomainResults]:
-    """Read back what `write_results` wrote (every domain folder with JSON files)."""
+    """Read back what `write_results` wrote (every domain folder with JSON files), in the
+    domain order recorded in `run.json` when there is one."""
     out = Path(out_dir)
     results: dict[str, DomainResults] = {}
-    for ddir in sorted(p for p in out.iterdir() if p.is_dir()):
+    order = {name: i for i, name in enumerate(load_meta(out).get("domains", []))}
+    dirs = sorted(
+        (p for p in out.iterdir() if p.is_dir()),
+        key=lambda p: (order.get(p.name, len(order)), p.name),
+    )
+    for ddir in dirs:
         res = DomainResults()
         for path in sorted(ddir.glob("*.json")):
             data = json.loads(path.read_text(encoding="utf-8"))
@@ -156,6 +184,13 @@ def build_report(
         raise ValueError("results is empty: nothing to report")
     layout_of = layouts or default_layouts()
     started = time.perf_counter()
+    meta = dict(meta or {})
+    for key in ("profile", "seed"):
+        values = {cur.get(key) for r in checked.values() for cur in r.curricula.values()} | (
+            {r.tests.get(key) for r in checked.values() if r.tests is not None}
+        )
+        if key not in meta and len(values) == 1:
+            meta[key] = values.pop()
 
     n_pictures = sum(
         sum(len(c["demos"]) + 1 for c in r.curricula.values())
@@ -272,11 +307,12 @@ def build_report(
     env.filters["num"] = _num
     html = env.get_template("index.html.j2").render(
         domains=domains_view,
-        summary=summary_rows,
+        summary=_pivot(summary_rows),
+        summary_conditions=_ordered_conditions(r["condition"] for r in summary_rows),
         test_summary=[
             {"domain": d["name"], **d["tests"]} for d in domains_view if d["tests"] is not None
         ],
-        meta=dict(meta or {}),
+        meta=meta,
         version=__version__,
         picture_seconds=time.perf_counter() - started,
         levels=LEVELS,
@@ -334,6 +370,21 @@ def _tests_view(
         "belief_area": tests["belief"].get("area"),
         "n_excluded": len(tests.get("excluded", [])),
     }
+
+
+def _ordered_conditions(conds: Iterable[str]) -> list[str]:
+    seen = list(dict.fromkeys(conds))
+    return [c for c in CONDITIONS if c in seen] + [c for c in seen if c not in CONDITIONS]
+
+
+def _pivot(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One summary row per domain with a cell per condition."""
+    out: dict[str, dict[str, Any]] = {}
+    for r in rows:
+        out.setdefault(r["domain"], {"domain": r["domain"], "cells": {}})["cells"][
+            r["condition"]
+        ] = r
+    return list(out.values())
 
 
 def _product(values: Iterable[Any]) -> float | None:

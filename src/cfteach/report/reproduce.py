@@ -8,7 +8,13 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from cfteach.report.build import CONDITIONS, DomainResults, build_report, write_results
+from cfteach.report.build import (
+    CONDITIONS,
+    DomainResults,
+    build_report,
+    write_results,
+    write_run,
+)
 
 PROFILES = ("default", "reference")
 
@@ -69,8 +75,15 @@ def reproduce(
     bar.close()
     seconds = time.perf_counter() - started
 
+    meta = {
+        "domains": list(results),
+        "conditions": list(conditions),
+        "profile": profile,
+        "seed": seed,
+        "seconds": seconds,
+    }
+    write_run(out, meta)
     index = None
     if report:
-        meta = {"profile": profile, "seed": seed, "seconds": seconds}
         index = build_report(out, results, meta=meta, progress=show)
     return results, index
