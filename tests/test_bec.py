@@ -198,3 +198,19 @@ def test_fast_gains_equal_plain_region_ops(name: str) -> None:
                 assert g == 0  # contradicting constraints are never worth showing
                 continue
             assert g == pytest.approx(running.area() / new.area(), rel=1e-12)
+
+
+@pytest.mark.parametrize("name", DOMAINS)
+def test_reference_values_match_for_random_models(name: str) -> None:
+    """Also for models from smaller beliefs (later rounds), incl. cheap-no-op models whose
+    reference sweeps hit the 1000 cap."""
+    dom = load(name)
+    ds = demo_set(dom, "reference")
+    rng = np.random.default_rng(11)
+    W = np.vstack([Region(dom.posterior).sample(6, rng), Region(dom.prior).sample(4, rng),
+                   [[-0.00124, -0.788, -0.616], [-0.999, -0.003, -0.0016]]])
+    ref = value_iteration(ds.batch, W, method="reference")
+    bounded, (pe, pm), Q = human_values(ds.batch, W, "reference")
+    assert np.array_equal(bounded, ref.bounded)
+    valid = ds.batch.valid[pe]
+    assert np.array_equal(Q[valid], ref.Q[pe, pm][valid])

@@ -88,12 +88,34 @@ def human_values(batch: MDPBatch, W: np.ndarray, method: str,
     pe, pm = np.nonzero(exact.bounded)
     R = np.einsum("psaf,pf->psa", batch.features[pe], W[pm])
     nxt = batch.next_state[pe]
+    slow = _too_slow_for_reference(R, nxt, batch.valid[pe], exact.V[pe, pm])
+    pe, pm, R, nxt = pe[~slow], pm[~slow], R[~slow], nxt[~slow]
     V, ok = _reference_sweeps(R, nxt)
     bounded = np.zeros_like(exact.bounded)
     bounded[pe[ok], pm[ok]] = True
     flat = nxt + (np.arange(len(pe)) * batch.S)[:, None, None]
     Q = R + V.reshape(-1)[flat]
     return bounded, (pe[ok], pm[ok]), Q[ok]
+
+
+def _too_slow_for_reference(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
+                            v_exact: np.ndarray) -> np.ndarray:
+    """Pairs the reference cannot stabilise within 1000 sweeps, proven without sweeping.
+
+    From V0 = 0, after k sweeps V_k(s) >= k * (best self-loop reward at s). If every reward
+    is negative, every cycle is, so the only fixed point is the true V*; a state with
+    V*(s) < 999 * (best self-loop reward) is therefore still above V* at sweep 999, and the
+    sweeps cannot have stopped earlier. (Cheap no-ops make exactly these pairs, spec §3.)
+    """
+    s_n = R.shape[1]
+    loop = nxt == np.arange(s_n)[None, :, None]
+    r_loop = np.where(loop, R, -np.inf).max(axis=-1)  # [P, S]
+    all_neg = np.all(np.where(valid[..., None], R < 0, True), axis=(1, 2))
+    bound = (REFERENCE_MAX_SWEEPS - 1) * r_loop
+    margin = 1e-6 * (1.0 + np.abs(v_exact))
+    with np.errstate(invalid="ignore"):
+        stuck = valid & np.isfinite(r_loop) & (v_exact < bound - margin)
+    return all_neg & stuck.any(axis=1)
 
 
 def _reference_sweeps(R: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
