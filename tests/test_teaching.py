@@ -124,6 +124,11 @@ def test_candidate_rules() -> None:
     assert candidate_set("default", g, 0.7, False) == [3]  # closest to 2.1
     assert candidate_set("reference", g, 0.7, False) == [3]
     assert candidate_set("default", np.array([1.0, 0.0]), 1.0, False) == []
+    from cfteach.teaching.counterfactual import _isclose
+
+    for a, b in [(1.0, 1.0000001), (1.0, np.inf), (np.inf, np.inf), (2.0, 1.99999),
+                 (0.0, 1e-9), (1.0, -np.inf), (3.0, 3.00003), (3.0, 3.0001)]:
+        assert _isclose(a, b) == bool(np.isclose(a, b)), (a, b)
 
 
 def test_dissimilarity_arrays_match_scalar_and_tie_break() -> None:

@@ -10,6 +10,7 @@ until the mask moves on.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -27,6 +28,13 @@ _DEFAULT_GAIN_EPS = 1e-12  # default profile: a gain must exceed 1 by this to co
 _DEFAULT_TIE_TOL = 1e-9  # default profile: gains this close (relative) are tied
 
 
+def _isclose(a: float, b: float) -> bool:
+    """``np.isclose(a, b)`` for scalars (rtol 1e-5, atol 1e-8, relative to b)."""
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return a == b
+    return abs(a - b) <= 1e-8 + 1e-5 * abs(b)
+
+
 def _candidates_reference_list(gains: np.ndarray, proportion: float) -> list[int]:
     """The reference's list branch: gains > 1 scanned in demo order with isclose grouping."""
     ids = np.flatnonzero(gains > 1)
@@ -34,18 +42,17 @@ def _candidates_reference_list(gains: np.ndarray, proportion: float) -> list[int
         return []
     if proportion == 1:
         best, out = -np.inf, []
-        for d in ids.tolist():
-            g = gains[d]
-            if np.isclose(g, best):
+        for d, g in zip(ids.tolist(), gains[ids].tolist(), strict=True):
+            if _isclose(g, best):
                 out.append(d)
             elif g > best:
                 best, out = g, [d]
         return out
     target = proportion * gains[ids].max()
     closest, out = np.inf, []
-    for d in ids.tolist():
-        dist = abs(gains[d] - target)
-        if np.isclose(dist, closest):
+    for d, g in zip(ids.tolist(), gains[ids].tolist(), strict=True):
+        dist = abs(g - target)
+        if _isclose(dist, closest):
             out.append(d)
         elif dist < closest:
             closest, out = dist, [d]
