@@ -18,7 +18,7 @@ import pytest
 from sqlalchemy import func, select
 
 import test_study_support
-from cfteach.study.build import init_study, preview_sources, toy_sources
+from cfteach.study.build import init_study, preview_sources, teaching_sources, toy_sources
 from cfteach.study.config import load_study
 from cfteach.study.db import make_engine
 from cfteach.study.export import export_csv
@@ -52,7 +52,10 @@ def browser():  # noqa: ANN201
 
 @functools.cache
 def _sources(kind: str) -> dict:
-    made = toy_sources() if kind == "toy" else preview_sources(seed=0)
+    if kind == "paper":
+        made = teaching_sources()  # the real teaching: cfteach.teaching.teach/select_tests
+    else:
+        made = toy_sources() if kind == "toy" else preview_sources(seed=0)
     return {s.domain.name: s for s in made}
 
 
@@ -251,7 +254,8 @@ def _run(browser, toy_study: Path, tmp_path: Path, **kw) -> tuple[Participant, P
     return who, out, db
 
 
-def _check_export(who: Participant, out: Path, kind: str = "toy", demos: int = 2) -> None:
+def _check_export(who: Participant, out: Path, kind: str = "toy",
+                  demos: int | dict[str, int] = 2) -> None:
     (p,) = _rows(out / "participants.csv")
     assert p["prolific_pid"] == PID and p["status"] == "completed"
     assert (p["age"], p["gender"], p["education"]) == ("34", "Non-binary", "Master's degree")
@@ -278,7 +282,7 @@ def _check_export(who: Participant, out: Path, kind: str = "toy", demos: int = 2
         inf, eff = who.likert[r["domain"]]
         assert int(r["value"]) == (inf if r["item"] == "informativeness" else eff)
     views = _rows(out / "demo_views.csv")
-    assert len(views) == 3 * demos
+    assert len(views) == (3 * demos if isinstance(demos, int) else sum(demos.values()))
     for v in views:  # the first demonstration of each domain was watched twice
         expected = ("2", "1") if v["demo_index"] == "0" else ("1", "0")
         assert (v["plays_completed"], v["replays"]) == expected
@@ -372,3 +376,15 @@ def test_browser_practice_lockout_after_three_failures(browser, toy_study: Path,
         assert redirected == ["https://app.prolific.com/submissions/complete?cc=SCR33N"]
         ctx.close()
     app.state.service.engine.dispose()
+
+
+def test_browser_full_study_on_the_paper_default_study(browser, tmp_path: Path) -> None:  # noqa: ANN001
+    """The default study (`cfteach study init` without --from): curricula and tests made by
+    cfteach.teaching for the three domains, played through in Chromium."""
+    study = tmp_path / "paper"
+    init_study(study, _sources("paper").values(), demo_step_ms=10, completion_code="C0MPL3TE")
+    who, out, _ = _run(browser, study, tmp_path)
+    (p,) = _rows(out / "participants.csv")
+    demos = {d: len(_sources("paper")[d].curricula[p["condition"]]["demos"])
+             for d in ("delivery", "tiles", "skateboard")}
+    _check_export(who, out, kind="paper", demos=demos)

@@ -37,23 +37,6 @@ def _sources_from_dir(src: Path, domains: list[str]):  # noqa: ANN202
     return out
 
 
-def _sources_generated(domains: list[str], profile: str, seed: int):  # noqa: ANN202
-    from cfteach.domains import load
-    from cfteach.study.build import CONDITIONS, DomainSource
-    from cfteach.teaching import select_tests, teach
-
-    out = []
-    for name in domains:
-        dom = load(name)
-        curricula = {c: teach(dom, c, profile=profile, seed=seed, progress=True)
-                     for c in CONDITIONS}
-        tests = select_tests(dom, training=tuple(curricula.values()), profile=profile,
-                             seed=seed, progress=True)
-        out.append(DomainSource(dom, {c: k.to_json() for c, k in curricula.items()},
-                                tests.to_json()))
-    return out
-
-
 @study_app.command("init")
 def init(
     out: Path = typer.Option(..., "--out", help="Study folder to create."),
@@ -75,7 +58,7 @@ def init(
                                          "its assignment cell after this long."),
 ) -> None:
     """Write a study folder (study.json) from curricula and test sets."""
-    from cfteach.study.build import init_study, preview_sources, toy_sources
+    from cfteach.study.build import init_study, preview_sources, teaching_sources, toy_sources
 
     names = [d.strip() for d in domains.split(",") if d.strip()]
     if toy:
@@ -85,7 +68,7 @@ def init(
     elif source is not None:
         sources = _sources_from_dir(source, names)
     else:
-        sources = _sources_generated(names, profile, seed)
+        sources = teaching_sources(names, profile=profile, seed=seed, progress=True)
     path = init_study(out, sources, title=title, completion_code=completion_code,
                       screened_out_code=screened_out_code, completion_url=completion_url,
                       demo_step_ms=demo_step_ms, cutoff_minutes=cutoff_minutes)

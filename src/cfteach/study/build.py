@@ -168,6 +168,26 @@ def browser_game(test: dict) -> dict:
     return {"layout": test["layout"], "game": public_game(test["game"])}
 
 
+def teaching_sources(names: Iterable[str] = ("delivery", "tiles", "skateboard"), *,
+                     profile: str = "default", seed: int = 0,
+                     progress: bool = False) -> list[DomainSource]:
+    """The paper's study material: a curriculum per condition (`cfteach.teaching.teach`)
+    and the domain's tests (`select_tests`, excluding every condition's demonstrations)."""
+    from cfteach.domains import load
+    from cfteach.teaching import select_tests, teach
+
+    out = []
+    for name in names:
+        dom = load(name)
+        curricula = {c: teach(dom, c, profile=profile, seed=seed, progress=progress)
+                     for c in CONDITIONS}
+        tests = select_tests(dom, training=tuple(curricula.values()), profile=profile,
+                             seed=seed, progress=progress)
+        out.append(DomainSource(dom, {c: k.to_json() for c, k in curricula.items()},
+                                tests.to_json()))
+    return out
+
+
 # ---------------------------------------------------------------------------------------
 # A tiny self-contained study ("toy"), for trying the platform and for its tests.
 
