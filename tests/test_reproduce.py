@@ -210,3 +210,80 @@ def test_unknown_domain_is_a_clear_error(tmp_path):
     result = CliRunner().invoke(app, ["reproduce", "--out", str(tmp_path), "-d", "nowhere"])
     assert result.exit_code != 0
     assert "nowhere" in result.output
+
+
+USER_TOML = """
+[domain]
+name = "keys"
+title = "Keys"
+description = "a user domain"
+width = 4
+height = 3
+discount = 1.0
+walls = [[2, 3]]
+
+[cells]
+lava = [[3, 1]]
+
+[agent]
+start = [1, 1]
+
+[cargo]
+name = "key"
+start = [1, 3]
+
+[[consumables]]
+name = "coin"
+cell = [4, 3]
+
+[goal]
+agent_at = [4, 1]
+
+[[variants]]
+add_cells = { lava = [[3, 2]] }
+
+[[variants]]
+add_cells = { lava = [[2, 2]] }
+
+[[variants]]
+switch_on = ["coin"]
+
+[[features]]
+name = "burn"
+label = "Lava"
+weight = -2.0
+when = { leaves_cells = "lava" }
+
+[[features]]
+name = "coin"
+label = "Coin"
+weight = 1.0
+when = { consumes = "coin" }
+
+[[features]]
+name = "step"
+label = "Step"
+weight = -1.0
+
+[beliefs]
+prior = [[0, 0, -1]]
+posterior = [[-1, 0, 0], [0, 1, 0], [0, 0, -1]]
+"""
+
+
+def test_a_user_domain_file_goes_through_the_whole_job(tmp_path):
+    path = tmp_path / "keys.toml"
+    path.write_text(USER_TOML, encoding="utf-8")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["reproduce", "--out", str(out), "-d", str(path)])
+    assert result.exit_code == 0, result.output + repr(result.exception)
+    run = json.loads((out / "run.json").read_text())
+    assert run["domains"] == ["keys"] and run["domain_files"] == {"keys": str(path.resolve())}
+    (out / "index.html").unlink()
+    result = CliRunner().invoke(app, ["reproduce", "--out", str(out), "--report-only"])
+    assert result.exit_code == 0, result.output + repr(result.exception)
+    parser = _Srcs()
+    parser.feed((out / "index.html").read_text(encoding="utf-8"))
+    assert any(s.endswith(".gif") for s in parser.srcs)
+    for src in parser.srcs:
+        assert (out / src).is_file(), src

@@ -57,17 +57,24 @@ def _as_domain_results(name: str, value: Any) -> DomainResults:
     return res
 
 
-def default_layouts() -> LayoutFn:
-    """Layouts from the domain files: `cfteach.domains.load(name).instance(env_index)`."""
+def default_layouts(
+    sources: Mapping[str, Any] | None = None,
+) -> LayoutFn:
+    """Layouts from the domain files: `cfteach.domains.load(...)` then `.instance(env_index)`.
+
+    `sources` maps a domain name to a loaded `Domain` or to its file (user domains, whose
+    name is not something `load` can find); other names are loaded as built-ins."""
     from cfteach import domains
     from cfteach.render import layout_from_instance
 
     loaded: dict[str, Any] = {}
     cache: dict[tuple[str, int], Any] = {}
+    sources = dict(sources or {})
 
     def layout(domain: str, demo: Mapping[str, Any]) -> Any:
         if domain not in loaded:
-            loaded[domain] = domains.load(domain)
+            src = sources.get(domain, domain)
+            loaded[domain] = src if hasattr(src, "instance") else domains.load(src)
         key = (domain, int(demo["env_index"]))
         if key not in cache:
             cache[key] = layout_from_instance(loaded[domain].instance(key[1]))
@@ -182,7 +189,7 @@ def build_report(
     checked = {name: _as_domain_results(name, value) for name, value in results.items()}
     if not checked:
         raise ValueError("results is empty: nothing to report")
-    layout_of = layouts or default_layouts()
+    layout_of = layouts or default_layouts((meta or {}).get("domain_files"))
     started = time.perf_counter()
     meta = dict(meta or {})
     for key in ("profile", "seed"):

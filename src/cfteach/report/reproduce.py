@@ -12,6 +12,7 @@ from cfteach.report.build import (
     CONDITIONS,
     DomainResults,
     build_report,
+    default_layouts,
     write_results,
     write_run,
 )
@@ -81,9 +82,16 @@ def reproduce(
         "profile": profile,
         "seed": seed,
         "seconds": seconds,
+        # user domains: where to find their files again (report-only rebuilds)
+        "domain_files": {
+            d.name: str(Path(d.source).resolve())
+            for d in loaded.values()
+            if d.name not in dom.builtin_names() and Path(d.source).is_file()
+        },
     }
     write_run(out, meta)
     index = None
     if report:
-        index = build_report(out, results, meta=meta, progress=show)
+        layouts = default_layouts({d.name: d for d in loaded.values()})
+        index = build_report(out, results, meta=meta, layouts=layouts, progress=show)
     return results, index
