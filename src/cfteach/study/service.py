@@ -104,10 +104,13 @@ class StudyService:
 
     def steps(self, row: Session) -> list[dict]:
         key = (row.domain_order, row.test_set, row.seed)
-        if key not in self._steps_cache:
-            self._steps_cache[key] = build_steps(self.study, row.domain_order.split(";"),
-                                                 row.test_set, row.seed)
-        return self._steps_cache[key]
+        steps = self._steps_cache.get(key)
+        if steps is None:
+            steps = build_steps(self.study, row.domain_order.split(";"), row.test_set, row.seed)
+            if len(self._steps_cache) >= 2048:  # bounded: recent sessions only
+                self._steps_cache.pop(next(iter(self._steps_cache)))
+            self._steps_cache[key] = steps
+        return steps
 
     # -- reading the current page ---------------------------------------------------------
 
