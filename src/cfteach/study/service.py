@@ -48,6 +48,7 @@ class StudyService:
         self._rng = random.Random(seed)
         self._pg = engine.dialect.name == "postgresql"
         self._steps_cache: dict[tuple, list[dict]] = {}
+        self._cache_lock = threading.Lock()
 
     # -- sessions -------------------------------------------------------------------------
 
@@ -107,9 +108,10 @@ class StudyService:
         steps = self._steps_cache.get(key)
         if steps is None:
             steps = build_steps(self.study, row.domain_order.split(";"), row.test_set, row.seed)
-            if len(self._steps_cache) >= 2048:  # bounded: recent sessions only
-                self._steps_cache.pop(next(iter(self._steps_cache)))
-            self._steps_cache[key] = steps
+            with self._cache_lock:
+                if len(self._steps_cache) >= 2048:  # bounded: recent sessions only
+                    self._steps_cache.pop(next(iter(self._steps_cache)))
+                self._steps_cache[key] = steps
         return steps
 
     # -- reading the current page ---------------------------------------------------------
