@@ -209,3 +209,27 @@ def test_gif_has_one_frame_per_state_with_the_agent_moving(tmp_path: Path, skate
     assert pixel(rgb, 4, (1, 4), 0.5, 0.5) == hex_rgb(st.OBJECT_STYLES["skateboard"].color)
     assert pixel(rgb, 4, (6, 4), 0.5, 0.5) == hex_rgb(st.GOAL_COLOR)
     assert pixel(rgb, 4, (2, 1), 0.1, 0.1) == hex_rgb(st.CELL_STYLES["path"].color)
+
+
+def test_legend_icons_draw_each_kind_with_its_own_style(delivery_like):
+    from cfteach.render.svg import legend_icons
+
+    icons = dict(legend_icons(delivery_like))
+    assert list(icons) == [
+        "robot",
+        "path walked",
+        "wall",
+        "mud",
+        "destination",
+        "package (passenger)",
+        "battery station (station)",
+    ]
+    fills = {
+        label: {e.get("fill") for e in ET.fromstring(svg).iter() if e.get("data-role")}
+        for label, svg in icons.items()
+    }
+    assert fills["robot"] == {st.AGENT_COLOR}
+    assert fills["mud"] == {st.CELL_STYLES["mud"].color}
+    assert fills["wall"] == {st.WALL_COLOR}
+    assert fills["battery station (station)"] == {st.OBJECT_STYLES["station"].color}
+    assert fills["package (passenger)"] == {st.OBJECT_STYLES["passenger"].color}

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from xml.sax.saxutils import quoteattr
 
-from cfteach.render.scene import Scene
+from cfteach.render.scene import Layout, Scene, SceneObject
 from cfteach.render.shapes import Circle, Polygon, Rect, Shape, scene_shapes
 
 
@@ -72,3 +72,69 @@ def to_svg(scene: Scene, cell_px: int = 48, *, title: str | None = None) -> str:
     body.extend(_element(s) for s in shapes)
     body.append("</svg>")
     return "\n".join(body)
+
+
+def legend_icons(layout: Layout, px: int = 22) -> list[tuple[str, str]]:
+    """(label, small inline SVG) for every kind of thing a layout's pictures can show, drawn
+    exactly as in the pictures: a key for reports."""
+    from cfteach.render import style as st
+
+    names = [n for n, _ in layout.cell_sets]
+    items: list[tuple[str, str, Scene]] = []
+
+    def lay(**kw: object) -> Layout:
+        base = {"width": 2, "height": 1, "cell_sets": tuple((n, frozenset()) for n in names)}
+        base.update(kw)
+        return Layout(**base)  # type: ignore[arg-type]
+
+    items.append(("robot", "agent", Scene(lay(), (1, 1))))
+    trail = Scene(lay(), (2, 1), trail=((2, 1), (1, 1)))
+    items.append(("path walked", "trail", trail))
+    if layout.walls:
+        items.append(("wall", "wall", Scene(lay(walls=frozenset({(1, 1)})), (2, 1))))
+    for pos, name in enumerate(names):
+        sets = tuple(
+            (n, frozenset({(1, 1)}) if i == pos else frozenset()) for i, n in enumerate(names)
+        )
+        label = st.cell_style(name, pos).label
+        items.append(
+            (
+                label if label == name else f"{label} ({name})",
+                f"cell:{name}",
+                Scene(lay(cell_sets=sets), (2, 1)),
+            )
+        )
+    if layout.goal is not None:
+        kind = "destination" if layout.goal_is_destination else "goal"
+        scene = Scene(
+            lay(goal=(1, 1), goal_is_destination=layout.goal_is_destination, cargo=layout.cargo),
+            (2, 1),
+        )
+        items.append((kind, "goal", scene))
+    if layout.cargo is not None:
+        ost = st.object_style(layout.cargo, "cargo")
+        obj = SceneObject(layout.cargo, "cargo", (1, 1))
+        label = ost.label if ost.label == layout.cargo else f"{ost.label} ({layout.cargo})"
+        items.append((label, f"object:{layout.cargo}", Scene(lay(), (2, 1), (obj,))))
+    for pos, (name, _) in enumerate(layout.consumables):
+        ost = st.object_style(name, "consumable", pos)
+        others = tuple(SceneObject(n, "consumable", None) for n, _ in layout.consumables[:pos])
+        obj = SceneObject(name, "consumable", (1, 1))
+        label = ost.label if ost.label == name else f"{ost.label} ({name})"
+        items.append((label, f"object:{name}", Scene(lay(), (2, 1), (*others, obj))))
+
+    out = []
+    for label, role, scene in items:
+        _, shapes = scene_shapes(scene, px)
+        keep = [
+            s for s in shapes if s.role == role or (role == "trail" and s.role.startswith("trail"))
+        ]
+        body = "".join(_element(s) for s in keep)
+        svg = (
+            f'<svg xmlns="http://www.w3.org/2000/svg" width="{px}" height="{px}" '
+            f'viewBox="0 0 {px} {px}" data-key={quoteattr(role)}>'
+            f'<rect x="0.5" y="0.5" width="{px - 1}" height="{px - 1}" fill="#ffffff" '
+            f'stroke="#000000" stroke-width="1"/>{body}</svg>'
+        )
+        out.append((label, svg))
+    return out

@@ -292,6 +292,9 @@ def build_report(
                     info["overlap_picture"] = f"{rel}/{file}"
                 bar.update()
         first = next(iter(res.curricula.values()), None) or res.tests or {}
+        every = [d for c in res.curricula.values() for d in c["demos"]]
+        if res.tests is not None:
+            every += [t for ts in res.tests["tests"].values() for t in ts]
         domains_view.append(
             {
                 "name": name,
@@ -300,6 +303,7 @@ def build_report(
                 "columns": columns,
                 "areas": areas_src,
                 "tests": tests_view,
+                "key": _legend(name, every, layout_of),
             }
         )
     bar.close()
@@ -377,6 +381,29 @@ def _tests_view(
         "belief_area": tests["belief"].get("area"),
         "n_excluded": len(tests.get("excluded", [])),
     }
+
+
+def _legend(name: str, demos: list[Mapping[str, Any]], layout_of: LayoutFn) -> list[Any]:
+    """(label, inline SVG icon) for everything the domain's pictures show, merged over the
+    instances its demonstrations and tests use (so a battery seen anywhere is listed)."""
+    from dataclasses import replace
+
+    from cfteach.render.svg import legend_icons
+
+    seen: dict[int, Any] = {}
+    for demo in demos:
+        seen.setdefault(int(demo["env_index"]), None)
+    layouts = [layout_of(name, {"env_index": e}) for e in seen]
+    if not layouts:
+        return []
+    base = layouts[0]
+    consumables = dict(base.consumables)
+    for lay in layouts[1:]:
+        for n, cell in lay.consumables:
+            consumables.setdefault(n, cell)
+    walls = frozenset().union(*(lay.walls for lay in layouts))
+    merged = replace(base, walls=walls, consumables=tuple(consumables.items()))
+    return legend_icons(merged)
 
 
 def _ordered_conditions(conds: Iterable[str]) -> list[str]:
