@@ -14,13 +14,15 @@ let token = sessionStorage.getItem("cfteach-token");
 let keyHandler = null;
 let cleanup = [];
 
-// Arrow keys and space never scroll the page.
+// Arrow keys and space never scroll the page; keys typed into a form field (a Likert radio,
+// a text box) stay there and do not move Chip.
 window.addEventListener("keydown", (e) => {
-  if (["ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight", " "].includes(e.key) &&
-      !(e.target instanceof HTMLTextAreaElement || e.target instanceof HTMLInputElement)) {
+  const inField = e.target instanceof HTMLTextAreaElement ||
+    e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement;
+  if (["ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight", " "].includes(e.key) && !inField) {
     e.preventDefault();
   }
-  if (keyHandler && !e.repeat) keyHandler(e);
+  if (keyHandler && !e.repeat && !inField) keyHandler(e);
 }, { passive: false });
 
 function uuid() {
