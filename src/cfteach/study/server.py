@@ -30,6 +30,9 @@ class _Limits(BaseHTTPMiddleware):
 
     async def dispatch(self, request: Request, call_next):  # noqa: ANN001, ANN201
         if request.method in ("POST", "PUT", "PATCH"):
+            ctype = request.headers.get("content-type", "")
+            if request.url.path.startswith("/api/") and not ctype.startswith("application/json"):
+                return _err(415, "json_only", "send the body as application/json")
             declared = request.headers.get("content-length")
             if declared is not None and (not declared.isdigit() or int(declared) > MAX_BODY):
                 return _err(413, "too_large", f"request body over {MAX_BODY} bytes")
@@ -90,14 +93,8 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     def index() -> HTMLResponse:
         return HTMLResponse(page.replace("{{title}}", html.escape(study["title"])))
 
-    def _json_only(request: Request) -> None:
-        ctype = request.headers.get("content-type", "")
-        if not ctype.startswith("application/json"):
-            raise ApiError(415, "json_only", "send application/json")
-
     @app.post("/api/session")
     def start(req: schemas.SessionRequest, request: Request) -> JSONResponse:
-        _json_only(request)
         addr = request.client.host if request.client else "?"
         if not session_limit.allow(addr):
             raise ApiError(429, "rate_limited", "too many new sessions; try again in a minute")
@@ -112,7 +109,6 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     @app.post("/api/event")
     def event(req: schemas.EventRequest, request: Request,
               x_session_token: str | None = Header(default=None)) -> JSONResponse:
-        _json_only(request)
         if not event_limit.allow(x_session_token or "?"):
             raise ApiError(429, "rate_limited", "too many events; slow down")
         return JSONResponse(service.post_event(x_session_token, req))
