@@ -186,3 +186,25 @@ def test_user_domains_get_environments_and_generic_pictures():
     img = env.render()
     lava_rgb = [int(st.cell_style("lava", 0).color[i : i + 2], 16) for i in (1, 3, 5)]
     assert img[20 + 2, 40 + 2].tolist() == lava_rgb  # cell (3, 1), near its top-left corner
+
+
+def test_tabular_P_matches_step_and_value_iteration_gives_the_hand_computed_return():
+    env = cgym.make("tiles", "000000000")  # no tiles: the best return from (1, 1) is 4 steps
+    P = env.P
+    assert set(P) == set(range(env.observation_space.n))
+    for obs in range(env.terminal_observation):
+        for a in range(6):
+            env.reset(options={"start_state": env.state_of(obs)})
+            nxt, r, term, _, _ = env.step(a)
+            assert P[obs][a] == [(1.0, nxt, r, term)]
+    # plain value iteration over P (gamma = 1, all rewards negative: it converges)
+    V = np.zeros(env.observation_space.n)
+    for _ in range(100):
+        V = np.array(
+            [
+                max(sum(p * (r + (0 if t else V[n])) for p, n, r, t in P[s][a]) for a in range(6))
+                for s in range(len(V))
+            ]
+        )
+    assert V[0] == pytest.approx(-4 / TILES_NORM, abs=1e-12)
+    assert V[env.terminal_observation] == 0

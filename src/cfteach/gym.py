@@ -15,6 +15,8 @@ Conventions (also in docs/rendering.md):
   `reset(options={"start_state": ...})` overrides it for one episode.
 - **Episode end**: `terminated` when the goal is reached; `truncated` after `max_steps`
   steps (default 100).
+- **Tabular view**: `env.unwrapped.P[obs][action] = [(1.0, next_obs, reward, terminated)]`,
+  the toy-text convention (FrozenLake, Taxi) that tabular RL code expects.
 - **Rendering**: `ansi` (one character per cell, see `cfteach.render.text`) and `rgb_array`
   (the study's pictures, `cell_px` pixels per cell), both with the episode's trail.
 
@@ -93,6 +95,7 @@ class GridEnv(gymnasium.Env):
         self.observation_space = spaces.Discrete(len(self._states) + 1)
         self._default_start = self._parse_start(start_state)
         self._layout = None
+        self._P: dict[int, dict[int, list[tuple[float, int, float, bool]]]] | None = None
         self._state = self.instance.initial_state
         self._done = False
         self._steps = 0
@@ -120,6 +123,26 @@ class GridEnv(gymnasium.Env):
         if observation == self.terminal_observation:
             return None
         return self._states[int(observation)]
+
+    @property
+    def P(self) -> dict[int, dict[int, list[tuple[float, int, float, bool]]]]:  # noqa: N802
+        """Transitions in the toy-text convention (FrozenLake, Taxi): `P[obs][action] =
+        [(1.0, next_obs, reward, terminated)]`, for tabular tools; the terminal observation
+        loops on itself with reward 0."""
+        if self._P is None:
+            table: dict[int, dict[int, list[tuple[float, int, float, bool]]]] = {}
+            for i, st in enumerate(self._states):
+                row = {}
+                for a in range(self.action_space.n):
+                    nxt, phi, terminal = self.instance.step(st, a)
+                    obs = self.terminal_observation if terminal else self._index[nxt]
+                    reward = float(self.weights @ np.asarray(phi, dtype=float))
+                    row[a] = [(1.0, obs, reward, bool(terminal))]
+                table[i] = row
+            end = self.terminal_observation
+            table[end] = {a: [(1.0, end, 0.0, True)] for a in range(self.action_space.n)}
+            self._P = table
+        return self._P
 
     @property
     def state(self) -> Any:
