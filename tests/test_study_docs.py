@@ -90,3 +90,36 @@ def test_cli_init_from_reproduce_layout(tmp_path: Path) -> None:
     r = CliRunner().invoke(app, ["study", "init", "--from", str(src_dir), "--out",
                                  str(tmp_path / "study2")])
     assert r.exit_code != 0 and "proposed.json" in r.output
+
+
+def test_cfteach_serve_starts_and_migrates(tmp_path: Path) -> None:
+    import time
+
+    import httpx
+
+    from cfteach.study.build import init_study, toy_sources
+    from cfteach.study.livesrv import free_port
+
+    init_study(tmp_path / "study", toy_sources())
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from cfteach.cli import main; main()", "serve", "--study",
+         str(tmp_path / "study"), "--port", str(port), "--researcher-token", "tok"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        base = f"http://127.0.0.1:{port}"
+        for _ in range(150):
+            try:
+                if httpx.get(base + "/", timeout=1).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                time.sleep(0.1)
+        else:
+            raise AssertionError("server did not start")
+        r = httpx.get(base + "/api/researcher/progress", headers={"X-Researcher-Token": "tok"})
+        assert r.status_code == 200 and len(r.json()["cells"]) == 72
+        assert (tmp_path / "study" / "study.db").exists()  # default SQLite file, migrated
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=20)
+    assert "researcher page: http://127.0.0.1:" in err
