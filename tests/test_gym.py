@@ -208,3 +208,10 @@ def test_tabular_P_matches_step_and_value_iteration_gives_the_hand_computed_retu
         )
     assert V[0] == pytest.approx(-4 / TILES_NORM, abs=1e-12)
     assert V[env.terminal_observation] == 0
+
+
+def test_builtin_ids_are_registered():
+    env = gymnasium.make("cfteach/Delivery-v0", env_code="000001", render_mode="ansi")
+    assert env.unwrapped.domain.name == "delivery"
+    assert env.unwrapped.instance.env_code == (0, 0, 0, 0, 0, 1)
+    assert gymnasium.make("cfteach/Skateboard-v0", env_code=7).unwrapped.domain.name == "skateboard"

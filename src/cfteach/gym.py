@@ -20,7 +20,8 @@ Conventions (also in docs/rendering.md):
 - **Rendering**: `ansi` (one character per cell, see `cfteach.render.text`) and `rgb_array`
   (the study's pictures, `cell_px` pixels per cell), both with the episode's trail.
 
-`gymnasium.make("cfteach/GridWorld-v0", domain="tiles", env_code="000000000")` works too.
+`gymnasium.make("cfteach/GridWorld-v0", domain="tiles", env_code="000000000")` works too, and
+so do `cfteach/Delivery-v0`, `cfteach/Tiles-v0`, `cfteach/Skateboard-v0` (domain preset).
 """
 
 from __future__ import annotations
@@ -223,9 +224,21 @@ def make(
     return GridEnv(domain, env_code, start_state, render_mode, max_steps, cell_px)
 
 
+BUILTIN_IDS = {
+    "delivery": "cfteach/Delivery-v0",
+    "tiles": "cfteach/Tiles-v0",
+    "skateboard": "cfteach/Skateboard-v0",
+}
+
+
 def _register() -> None:
     if ENV_ID not in gymnasium.registry:
         gymnasium.register(id=ENV_ID, entry_point="cfteach.gym:GridEnv")
+    for name, env_id in BUILTIN_IDS.items():
+        if env_id not in gymnasium.registry:
+            gymnasium.register(
+                id=env_id, entry_point="cfteach.gym:GridEnv", kwargs={"domain": name}
+            )
 
 
 _register()
