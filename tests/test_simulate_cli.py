@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from typer.testing import CliRunner
 
 from cfteach.cli import app
@@ -47,3 +48,20 @@ def test_simulate_command_names_bad_input(tmp_path) -> None:
     res = runner.invoke(app, ["simulate", "-d", "tiles", "-c", "baseline",
                               "--from", str(src), "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "baseline" in res.output
+
+
+@pytest.mark.slow
+def test_simulate_random_four_feature_domain_end_to_end(tmp_path) -> None:
+    """n > 3 features through teaching, test selection, learners and the summary."""
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, ["simulate", "-d", "random:5x5:f4:n8:s1", "-c",
+                                   "proposed,none", "-l", "counterfactual", "-n", "4",
+                                   "--workers", "1", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    data = json.loads((out / "results.json").read_text())
+    assert data["settings"]["domains"] == ["random-5x5-f4-n8-s1"]
+    beliefs = {b["condition"]: b for b in data["beliefs"]}
+    assert beliefs["proposed"]["contains_w_star"] == 1.0
+    # beyond 3 features the belief area is an estimate with a standard error
+    assert beliefs["proposed"]["mean_belief_area_se"] is not None
+    assert beliefs["none"]["mean_belief_area"] > beliefs["proposed"]["mean_belief_area"]
