@@ -347,3 +347,50 @@ def test_export_reads_back_in_the_analysis_and_marks_abandoned(toy_study: Path,
                       "busy01": "in_progress"}
     ex = load_export(tmp_path / "out")  # the analysis side's loader and validator
     assert len(ex.participants) == 3 and len(ex.tests) == 18
+
+
+def test_racing_duplicates_are_stored_once(client: TestClient) -> None:
+    """Eight simultaneous copies of one event (a retry storm), then eight different events
+    for the same step (a double click): one is stored, the rest refused."""
+    import threading
+
+    from cfteach.study.schemas import EventRequest
+    from cfteach.study.service import ApiError
+
+    svc = client.app.state.service
+    tok = client.post("/api/session", json=PARAMS).json()["token"]
+    consent = {"adult": True, "read": True, "agree": True}
+
+    def race(requests: list[EventRequest]) -> list[str]:
+        out: list[str] = []
+        barrier = threading.Barrier(len(requests))
+
+        def go(req: EventRequest) -> None:
+            barrier.wait()
+            try:
+                svc.post_event(tok, req)
+                out.append("ok")
+            except ApiError as e:
+                out.append(e.code)
+
+        threads = [threading.Thread(target=go, args=(r,)) for r in requests]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        return sorted(out)
+
+    same = EventRequest(event_id="same-event-0001", step_index=0, type="consent",
+                        payload=consent)
+    assert race([same] * 8) == ["duplicate_event"] * 7 + ["ok"]
+    clicks = [EventRequest(event_id=f"click-{i:04d}", step_index=1, type="continue")
+              for i in range(8)]
+    assert race(clicks) == ["ok"] + ["wrong_step"] * 7
+    st = client.get("/api/state", headers={"X-Session-Token": tok}).json()
+    assert st["step_index"] == 2
+    from sqlalchemy import func, select
+
+    from cfteach.study.models import Event
+
+    with svc.Session() as db:
+        assert db.scalar(select(func.count()).select_from(Event)) == 2
