@@ -180,3 +180,16 @@ def test_real_proposed_curriculum_keeps_w_star_and_beats_no_teaching() -> None:
     assert (taught.belief_areas() < 2 * np.pi).all()
     none = Learners(dom, "counterfactual", 16, rng=0)
     assert taught.answer(flat)["correct"].mean() > none.answer(flat)["correct"].mean() + 0.1
+
+
+def test_learner_specs_from_the_command_line() -> None:
+    m = learner_model("noisy:temperature=0.1:human_models=3:resample_unbounded=false")
+    assert (m.temperature, m.human_models, m.resample_unbounded) == (0.1, 3, False)
+    assert m.name == "noisy:temperature=0.1:human_models=3:resample_unbounded=false"
+    assert learner_model("irl").name == "irl"
+    with pytest.raises(ValueError, match="bad learner option 'speed=2'"):
+        learner_model("noisy:speed=2")
+    with pytest.raises(ValueError, match="bad value 'hot' for temperature"):
+        learner_model("noisy:temperature=hot")
+    with pytest.raises(ValueError, match="temperature must be >= 0"):
+        learner_model("noisy:temperature=-1")

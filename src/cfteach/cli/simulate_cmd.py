@@ -29,7 +29,9 @@ def register(app: typer.Typer) -> None:
                  "(no demonstrations). Default: all five."),
         learner: list[str] = typer.Option(
             None, "--learner", "-l",
-            help="Learner models: counterfactual, irl, noisy. Default: counterfactual,noisy."),
+            help="Learner models: counterfactual, irl, noisy, each optionally with "
+                 "field=value settings, e.g. noisy:temperature=0.1:human_models=3. "
+                 "Default: counterfactual,noisy."),
         learners: int = typer.Option(32, "--learners", "-n", min=1,
                                      help="Simulated learners per condition and model."),
         seeds: int = typer.Option(1, "--seeds", "-k", min=1,

@@ -75,10 +75,42 @@ LEARNER_MODELS: dict[str, LearnerModel] = {
 }
 
 
+_FIELD_TYPES = {"human_models": int, "all_suffixes": bool, "temperature": float,
+                "resample_unbounded": bool}
+
+
+def parse_learner(spec: str) -> LearnerModel:
+    """A learner model from a command-line spec: a built-in name, optionally followed by
+    ``:field=value`` pairs, e.g. ``noisy:temperature=0.1:human_models=3``. The spec itself
+    becomes the model's name, so variants are told apart in the results."""
+    name, *pairs = spec.split(":")
+    overrides: dict[str, Any] = {}
+    for pair in pairs:
+        key, eq, value = pair.partition("=")
+        if not eq or key not in _FIELD_TYPES:
+            raise ValueError(f"bad learner option {pair!r} in {spec!r}: write field=value with "
+                             f"a field among {', '.join(_FIELD_TYPES)}")
+        kind = _FIELD_TYPES[key]
+        try:
+            if kind is bool:
+                if value.lower() not in ("true", "false", "1", "0"):
+                    raise ValueError
+                overrides[key] = value.lower() in ("true", "1")
+            else:
+                overrides[key] = kind(value)
+        except ValueError:
+            raise ValueError(f"bad value {value!r} for {key} in {spec!r} "
+                             f"(expected {kind.__name__})") from None
+    model = learner_model(name, **overrides)
+    return replace(model, name=spec) if pairs else model
+
+
 def learner_model(name: str | LearnerModel, **overrides: Any) -> LearnerModel:
     """A built-in learner model by name, optionally with some fields changed."""
     if isinstance(name, LearnerModel):
         return replace(name, **overrides) if overrides else name
+    if ":" in name and not overrides:
+        return parse_learner(name)
     if name not in LEARNER_MODELS:
         raise ValueError(f"unknown learner model {name!r}; choose one of "
                          f"{', '.join(LEARNER_MODELS)}")
