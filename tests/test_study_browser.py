@@ -388,3 +388,18 @@ def test_browser_full_study_on_the_paper_default_study(browser, tmp_path: Path) 
     demos = {d: len(_sources("paper")[d].curricula[p["condition"]]["demos"])
              for d in ("delivery", "tiles", "skateboard")}
     _check_export(who, out, kind="paper", demos=demos)
+
+
+def test_browser_shows_the_researchers_consent_text(browser, tmp_path: Path) -> None:  # noqa: ANN001
+    study = tmp_path / "consent"
+    init_study(study, toy_sources(), consent_html="<h2>Procedures</h2><p id='irb'>IRB "
+               "protocol 2026-042: you will play short games.</p>")
+    app = create_app(study, f"sqlite:///{tmp_path / 'c.db'}")
+    with running(app) as base:
+        page = browser.new_page()
+        page.goto(f"{base}/?PROLIFIC_PID=consent01")
+        page.wait_for_selector("#consent-text #irb")
+        assert "IRB protocol 2026-042" in page.text_content("#consent-text")
+        assert page.is_disabled("#agree")
+        page.close()
+    app.state.service.engine.dispose()

@@ -123,3 +123,19 @@ def test_cfteach_serve_starts_and_migrates(tmp_path: Path) -> None:
         proc.terminate()
         _, err = proc.communicate(timeout=20)
     assert "researcher page: http://127.0.0.1:" in err
+
+
+def test_cli_init_consent_file(tmp_path: Path) -> None:
+    from cfteach.study.config import load_study
+
+    good = tmp_path / "consent.html"
+    good.write_text("<p>Our consent text.</p>", encoding="utf-8")
+    r = CliRunner().invoke(app, ["study", "init", "--toy", "--out", str(tmp_path / "s"),
+                                 "--consent", str(good)])
+    assert r.exit_code == 0, r.output
+    assert load_study(tmp_path / "s")["consent_html"] == "<p>Our consent text.</p>"
+    bad = tmp_path / "bad.html"
+    bad.write_text("<p>x</p><SCRIPT>alert(1)</script>", encoding="utf-8")
+    r = CliRunner().invoke(app, ["study", "init", "--toy", "--out", str(tmp_path / "t"),
+                                 "--consent", str(bad)])
+    assert r.exit_code != 0 and "may not contain <script>" in r.output

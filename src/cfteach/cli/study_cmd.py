@@ -37,6 +37,18 @@ def _sources_from_dir(src: Path, domains: list[str]):  # noqa: ANN202
     return out
 
 
+def _read_consent(path: Path | None) -> str | None:
+    if path is None:
+        return None
+    if not path.exists():
+        raise typer.BadParameter(f"consent file {path} does not exist")
+    html = path.read_text(encoding="utf-8")
+    if "<script" in html.lower():
+        raise typer.BadParameter(f"{path}: the consent text may not contain <script> "
+                                 "(the page's Content-Security-Policy would block it anyway)")
+    return html
+
+
 @study_app.command("init")
 def init(
     out: Path = typer.Option(..., "--out", help="Study folder to create."),
@@ -56,6 +68,8 @@ def init(
     demo_step_ms: int = typer.Option(500, help="Milliseconds per demonstration step."),
     cutoff_minutes: float = typer.Option(30.0, help="An idle session stops counting toward "
                                          "its assignment cell after this long."),
+    consent: Path | None = typer.Option(None, "--consent", help="HTML file with your consent "
+                                        "text (no scripts), shown above the check boxes."),
 ) -> None:
     """Write a study folder (study.json) from curricula and test sets."""
     from cfteach.study.build import init_study, preview_sources, teaching_sources, toy_sources
@@ -71,7 +85,8 @@ def init(
         sources = teaching_sources(names, profile=profile, seed=seed, progress=True)
     path = init_study(out, sources, title=title, completion_code=completion_code,
                       screened_out_code=screened_out_code, completion_url=completion_url,
-                      demo_step_ms=demo_step_ms, cutoff_minutes=cutoff_minutes)
+                      demo_step_ms=demo_step_ms, cutoff_minutes=cutoff_minutes,
+                      consent_html=_read_consent(consent))
     typer.echo(f"wrote {path}")
 
 

@@ -45,8 +45,12 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
                completion_code: str = "COMPLETED", screened_out_code: str = "SCREENED",
                completion_url: str = "https://app.prolific.com/submissions/complete?cc=",
                test_sets: int = 3, demo_step_ms: int = 500, cutoff_minutes: float = 30.0,
-               practice_attempts: int = 3) -> Path:
-    """Write `out/study.json` and return its path."""
+               practice_attempts: int = 3, consent_html: str | None = None) -> Path:
+    """Write `out/study.json` and return its path.
+
+    `consent_html`: your ethics board's consent text (HTML without scripts) shown above the
+    three consent check boxes instead of the built-in generic one.
+    """
     sources = list(sources)
     if not sources:
         raise ValueError("a study needs at least one domain")
@@ -98,6 +102,7 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
         "demo_step_ms": demo_step_ms,
         "cutoff_minutes": cutoff_minutes,
         "practice_attempts": practice_attempts,
+        "consent_html": consent_html,
         "completion": {"completed": completion_code, "screened_out": screened_out_code,
                        "url": completion_url},
         "practice": {"layout": PRACTICE.study_layout(), "game": pgame,

@@ -132,6 +132,8 @@ class StudyService:
         step = dict(steps[row.step_index])
         kind = step["kind"]
         s = self.study
+        if kind == "consent" and s.get("consent_html"):
+            step["html"] = s["consent_html"]
         if kind in ("free_play", "practice"):
             p = s["practice"]
             step.update(layout=p["layout"], game=p["game"],  # not secret: energy shown

@@ -210,9 +210,14 @@ const pages = {
         ? "You are eligible to participate in our study. Do you understand and consent to these terms?"
         : "Unless you meet the above requirements, you are not eligible to complete this study.";
     };
+    let custom = null;
+    if (st.step.html) {  // the researcher's own consent text (from study init --consent)
+      custom = h("section", { class: "consent", id: "consent-text" });
+      custom.innerHTML = st.step.html;
+    }
     app.replaceChildren(
       h("h1", { text: "Informed Consent Form" }),
-      h("section", { class: "consent" },
+      custom || h("section", { class: "consent" },
         h("h2", { text: "Procedures" }),
         h("p", { text: "You will watch short demonstrations of a robot playing three simple " +
           "games and then play the games yourself. This study may take up to 25 minutes." }),
