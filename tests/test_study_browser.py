@@ -24,7 +24,7 @@ from cfteach.study.db import make_engine
 from cfteach.study.export import export_csv
 from cfteach.study.games import best_path, shortest_path
 from cfteach.study.livesrv import running
-from cfteach.study.models import Event
+from cfteach.study.models import Event, TestResponse
 from cfteach.study.server import create_app
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -208,6 +208,7 @@ class Participant:
         if kind == "test":
             page.click("#board")
             self.press(["up", "left"])  # a few moves, then the page is reloaded
+            page.wait_for_timeout(2500)
         elif kind == "demos":
             page.click("#play")
             page.wait_for_selector("#next:not([disabled])")
@@ -303,7 +304,11 @@ def test_browser_reload_mid_study_resumes(browser, toy_study: Path,  # noqa: ANN
         n, lo, hi = conn.execute(select(func.count(), func.min(Event.seq),
                                         func.max(Event.seq))).one()
         loads = conn.execute(select(func.count()).where(Event.type == "page_load")).scalar()
+        times = conn.execute(select(TestResponse.time_ms, TestResponse.server_ms)).all()
     engine.dispose()
+    # time_ms runs from the test's first showing, across the reload (2.5 s spent before it).
+    assert len(times) == 18
+    assert all(abs(t - s) < 1500 for t, s in times), times
     assert (lo, hi) == (1, n)  # gap-free, in order
     assert loads == 3  # one per reload
 

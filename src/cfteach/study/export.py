@@ -51,7 +51,8 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("optimal_reward", "float", "reward of the robot's optimal answer"),
         ("optimal", "0/1", "1 if reward equals optimal_reward within 1e-9 (the paper's M1)"),
         ("optimal_length", "int", "number of actions of the robot's optimal answer"),
-        ("time_ms", "int", "from the test being shown to its submission (browser clock)"),
+        ("time_ms", "int", "from the test being first shown to its submission (browser clock; "
+                           "a reload keeps counting)"),
         ("confidence", "int", "1..5: confidence item (1 = Not Confident)"),
     ],
     "likert.csv": [

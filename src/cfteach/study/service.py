@@ -161,7 +161,10 @@ class StudyService:
             t = s["tests"][step["domain"]][row.test_set][step.pop("test_index")]
             step.update(browser_game(t), info=_public_info(s["domain_info"][step["domain"]]),
                         confidence=LIKERT["confidence"],
-                        n_trials=len(s["tests"][step["domain"]][row.test_set]))
+                        n_trials=len(s["tests"][step["domain"]][row.test_set]),
+                        # so time_ms counts from the first showing, even across reloads
+                        elapsed_ms=max(0, int((utcnow() - _aware(row.step_entered_at))
+                                              .total_seconds() * 1000)))
         elif kind == "feedback":
             n = db.scalar(select(func.count()).select_from(TestResponse).where(
                 TestResponse.session_pk == row.id, TestResponse.domain == step["domain"],

@@ -494,7 +494,7 @@ const pages = {
     const submit = continueButton("Submit", null, { id: "next", type: "submit",
       disabled: true });
     form.appendChild(submit);
-    const t0 = performance.now();
+    const t0 = performance.now() - (s.elapsed_ms || 0);  // shown before a reload: keep counting
     const game = new Game(board, s.layout, s.game, { keys: s.info.keys, label: "test game",
       onEnd: () => update() });
     const update = () => {
