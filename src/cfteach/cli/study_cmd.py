@@ -151,6 +151,9 @@ def serve(
                                             "minute (0 = no limit)."),
     events_per_minute: int = typer.Option(600, help="Events per session per minute "
                                           "(0 = no limit)."),
+    forwarded_allow_ips: str = typer.Option(
+        "127.0.0.1", help="Reverse proxies whose X-Forwarded-For is trusted (comma-separated, "
+        "'*' = any), so rate limits see participants' addresses, not the proxy's."),
 ) -> None:
     """Run the study server (participants open /?PROLIFIC_PID=...&STUDY_ID=...&SESSION_ID=...)."""
     import secrets
@@ -164,7 +167,7 @@ def serve(
                      events_per_minute=events_per_minute)
     typer.echo(f"researcher page: http://{host}:{port}/researcher?token={token}", err=True)
     uvicorn.run(app, host=host, port=port, log_level=os.environ.get("CFTEACH_LOG", "info"),
-                access_log=False)
+                access_log=False, proxy_headers=True, forwarded_allow_ips=forwarded_allow_ips)
 
 
 def register(app: typer.Typer) -> None:
