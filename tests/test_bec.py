@@ -214,3 +214,39 @@ def test_reference_values_match_for_random_models(name: str) -> None:
     assert np.array_equal(bounded, ref.bounded)
     valid = ds.batch.valid[pe]
     assert np.array_equal(Q[valid], ref.Q[pe, pm][valid])
+
+
+@pytest.mark.parametrize("name", DOMAINS)
+def test_loop_rows_match_brute_force_and_hold_for_true_weights(name: str) -> None:
+    from cfteach.bec import loop_rows
+
+    dom = load(name)
+    ds = demo_set(dom, "default")
+    rng = np.random.default_rng(8)
+    W = np.vstack([Region(np.zeros((0, 3), int), dim=3).sample(6, rng), [[0.3, 0.4, -0.5]]])
+    vals = value_iteration(ds.batch, W, method="exact")
+    ue, um = np.nonzero(~vals.bounded)
+    assert len(ue) > 0
+    pick = rng.choice(len(ue), size=min(6, len(ue)), replace=False)
+    got = loop_rows(ds.batch, W, ue[pick], um[pick])
+    for rows, i in zip(got, pick, strict=True):
+        e, m = int(ue[i]), int(um[i])
+        inst = ds.batch.instances[e]
+        want = set()
+        for s in inst.states():
+            for a in range(len(dom.actions)):
+                s2, phi, t = inst.step(s, a)
+                if t:
+                    continue
+                if s2 == s:
+                    if W[m] @ phi > 0:
+                        want.add(tuple(primitive(-np.rint(phi).astype(int)[None])[0]))
+                    continue
+                for b in range(len(dom.actions)):
+                    s3, phi2, t2 = inst.step(s2, b)
+                    if not t2 and s3 == s and W[m] @ (phi + phi2) > 0:
+                        row = primitive(-np.rint(phi + phi2).astype(int)[None])[0]
+                        want.add(tuple(row))
+        want.discard((0, 0, 0))
+        assert as_set(rows) == want, (e, m)
+        assert np.all(rows @ dom.weights >= -1e-12)  # the true weights make no loop pay

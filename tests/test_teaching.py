@@ -243,3 +243,26 @@ def test_scot_broadcast_equals_generic_enumeration(name: str, profile: str) -> N
     groups[1] = np.union1d(groups[1], groups[0][:2])
     groups[2] = np.union1d(groups[2], groups[0][:1])
     assert B._scot3(ds, groups) == B._scot_generic(ds, groups)
+
+
+def test_default_profile_reaches_the_bec_despite_unbounded_models() -> None:
+    """With 32 uniform models, most of skateboard's belief after one demonstration makes
+    pickup/dropoff loops pay: skipping such models stopped teaching after one demonstration
+    (area 1.72); their loop constraints let it reach the policy-level BEC."""
+    skip = teach("skateboard", "counterfactual_only", human_models=32, seed=1,
+                 unbounded_models="skip")
+    assert len(skip) == 1 and skip.final_belief.area() > 1
+    loops = teach("skateboard", "counterfactual_only", human_models=32, seed=1)
+    assert loops.to_json()["settings"]["unbounded_models"] == "loops"
+    assert loops.final_belief.area() == pytest.approx(bec_area("skateboard"), rel=1e-9)
+    assert loops.final_belief.contains(load("skateboard").weights)
+    with pytest.raises(ValueError, match="'maybe'.*skip"):
+        teach("skateboard", "proposed", unbounded_models="maybe")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["delivery", "tiles", "skateboard"])
+def test_default_profile_conditions_reach_the_bec(name: str) -> None:
+    for c in CONDITIONS:
+        cur = teach(name, c, profile="default", seed=0)
+        assert cur.final_belief.area() == pytest.approx(bec_area(name), rel=1e-9), c

@@ -23,10 +23,14 @@ from typing import Any
 import numpy as np
 
 from cfteach.bec.constraints import (
+    DEFAULT_UNBOUNDED,
+    UNBOUNDED_RULES,
+    check_unbounded,
     counterfactual_rows,
     human_mu,
     human_mu_batch,
     human_values,
+    loop_rows,
     one_action_rows,
 )
 from cfteach.bec.demos import PROFILES, VI_METHOD, DemoSet, check_profile, demo_set
@@ -36,7 +40,8 @@ from cfteach.domains import Domain, State, load
 from cfteach.geometry import Region
 
 __all__ = [
-    "PROFILES", "DemoSet", "RowSet", "VI_METHOD", "check_profile", "cone_generators",
+    "DEFAULT_UNBOUNDED", "PROFILES", "UNBOUNDED_RULES", "DemoSet", "RowSet", "VI_METHOD",
+    "check_profile", "check_unbounded", "cone_generators", "loop_rows",
     "counterfactual_constraints", "counterfactual_rows", "demo_set", "group_rows",
     "human_mu", "human_mu_batch", "human_values", "intersected_areas", "knowledge_gains",
     "one_action_constraints", "one_action_rows", "policy_bec", "primitive",
@@ -83,11 +88,14 @@ def one_action_constraints(domain: Domain | str, env_index: int,
 def counterfactual_constraints(domain: Domain | str, env_index: int,
                                start_state: State | dict[str, Any], human_weights: Any, *,
                                method: str = "exact", profile: str = "default",
-                               reference_ties: bool | None = None) -> np.ndarray:
+                               reference_ties: bool | None = None,
+                               unbounded: str | None = None) -> np.ndarray:
     """Joint counterfactual constraints of one demo under human models ``[M, F]`` (reduced).
 
     Only the demo's instance is planned, so this is cheap enough per learner. Human models
-    whose values are unbounded in this instance contribute nothing (spec §6.2).
+    whose values are unbounded in this instance contribute nothing (``unbounded="skip"``,
+    spec §6.2) or the constraints that their positive loops do not pay (``"loops"``,
+    `loop_rows`); default: the profile's rule (skip for reference, loops for default).
     """
     ds = demo_set(resolve_domain(domain), profile)
     d = _demo_index(ds, env_index, start_state)
@@ -103,6 +111,10 @@ def counterfactual_constraints(domain: Domain | str, env_index: int,
     s = ds.states[d, t]
     rows = ds.suffix_mu[d, t][:, None, :] - mu_h[0][:, s].transpose(1, 0, 2)  # [T, M, F]
     rows = rows[:, bounded[0]].reshape(-1, ds.F)
+    rule = check_unbounded(DEFAULT_UNBOUNDED[ds.profile] if unbounded is None else unbounded)
+    if rule == "loops" and not bounded[0].all():
+        um = np.flatnonzero(~bounded[0])
+        rows = np.vstack([rows, *loop_rows(ds.batch, W, np.full(len(um), e), um)])
     grouped = group_rows(rows, np.zeros(len(rows), dtype=np.int64), 1)
     if not len(grouped.rows):
         return np.zeros((0, ds.F), dtype=np.int64)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from cfteach.bec.demos import VI_METHOD, DemoSet
-from cfteach.bec.rows import RowSet, group_rows
+from cfteach.bec.rows import RowSet, group_rows, primitive
 from cfteach.mdp import MDPBatch, value_iteration
 from cfteach.mdp.rollout import MAX_STEPS
 from cfteach.mdp.vi import REFERENCE_MAX_SWEEPS, REFERENCE_TOL, tied_actions
@@ -259,19 +259,68 @@ class _Pairs:
         return p, idx % self.S, mu_best
 
 
+UNBOUNDED_RULES = ("skip", "loops")
+
+#: The rule for human models with unbounded values, per profile.
+DEFAULT_UNBOUNDED = {"reference": "skip", "default": "loops"}
+
+
+def check_unbounded(rule: str) -> str:
+    if rule not in UNBOUNDED_RULES:
+        raise ValueError(f"unknown rule for unbounded human models {rule!r} "
+                         f"(allowed: {', '.join(UNBOUNDED_RULES)})")
+    return rule
+
+
+def loop_rows(batch: MDPBatch, W: np.ndarray, env: np.ndarray, model: np.ndarray,
+              ) -> list[np.ndarray]:
+    """For each (instance, model) pair: ``-mu(loop)`` for every positive-reward loop of
+    length 1 (a no-op or blocked move) or 2 (there and back) under that model.
+
+    A human model with such a loop would loop forever in that instance (unbounded values).
+    Every demonstration there shows the robot not looping, i.e. that the loop is not
+    rewarding: ``-mu(loop) . w >= 0``. The true weights satisfy it (they make no loop
+    positive, otherwise the demonstrations would be unbounded too). Longer loops are not
+    enumerated. Returns one primitive, deduplicated ``[k, F]`` int array per pair.
+    """
+    W = np.atleast_2d(np.asarray(W, dtype=float))
+    out = []
+    S = batch.S
+    ar = np.arange(S)
+    for e, m in zip(np.asarray(env).tolist(), np.asarray(model).tolist(), strict=True):
+        feats = np.rint(batch.features[e]).astype(np.int64)  # [S, A, F]
+        R = batch.features[e] @ W[m]
+        nxt = batch.next_state[e]
+        valid = batch.valid[e]
+        one = (nxt == ar[:, None]) & valid[:, None] & (R > 0)
+        back = nxt[nxt]  # [S, A, A]: s -a-> s2 -b-> back
+        two = (valid[:, None, None] & valid[nxt][:, :, None] & (nxt != ar[:, None])[:, :, None]
+               & (back == ar[:, None, None]) & (R[:, :, None] + R[nxt] > 0))
+        rows = np.vstack([-feats[one], -(feats[:, :, None, :] + feats[nxt])[two]])
+        rows = primitive(rows)
+        rows = rows[np.any(rows != 0, axis=1)]
+        out.append(np.unique(rows, axis=0) if len(rows) else rows.reshape(0, batch.F))
+    return out
+
+
 def counterfactual_rows(ds: DemoSet, W: np.ndarray, *, method: str | None = None,
-                        reference_ties: bool | None = None,
+                        reference_ties: bool | None = None, unbounded: str | None = None,
                         ) -> tuple[RowSet, np.ndarray, np.ndarray]:
     """Joint counterfactual rows of every demo under human models ``W [M, F]``.
 
     Returns ``(joint RowSet, bounded [E, M], raw)`` where raw = (rows [N, F], demo [N],
-    model [N]) before grouping (per-model sets, for callers that need them).
+    model [N]) before grouping (per-model sets, for callers that need them). `unbounded`:
+    what a model with unbounded values in an instance contributes there: ``"skip"`` nothing
+    (the reference's rule), ``"loops"`` its positive loops (`loop_rows`); default: the
+    profile's rule (`DEFAULT_UNBOUNDED`).
     """
     W = np.atleast_2d(np.asarray(W, dtype=float))
     method = VI_METHOD[ds.profile] if method is None else method
     if reference_ties is None:
         reference_ties = ds.profile == "reference"
-    key = (W.tobytes(), W.shape, method, reference_ties)
+    unbounded = check_unbounded(DEFAULT_UNBOUNDED[ds.profile] if unbounded is None
+                                else unbounded)
+    key = (W.tobytes(), W.shape, method, reference_ties, unbounded)
     memo = ds.cache.setdefault("counterfactual", {})
     if key in memo:
         return memo[key]
@@ -284,6 +333,19 @@ def counterfactual_rows(ds: DemoSet, W: np.ndarray, *, method: str | None = None
     demo = np.broadcast_to(d_idx[:, None], ok.shape)
     model = np.broadcast_to(np.arange(mu_h.shape[1])[None, :], ok.shape)
     flat_rows, flat_demo, flat_model = rows[ok], demo[ok], model[ok]
+    if unbounded == "loops":
+        ue, um = np.nonzero(~bounded)
+        extra_r, extra_d, extra_m = [flat_rows], [flat_demo], [flat_model]
+        for e, m, lr in zip(ue.tolist(), um.tolist(), loop_rows(ds.batch, W, ue, um),
+                            strict=True):
+            if not len(lr):
+                continue
+            demos_e = np.flatnonzero(ds.env == e)
+            extra_r.append(np.tile(lr, (len(demos_e), 1)))
+            extra_d.append(np.repeat(demos_e, len(lr)))
+            extra_m.append(np.full(len(demos_e) * len(lr), m))
+        flat_rows, flat_demo = np.vstack(extra_r), np.concatenate(extra_d)
+        flat_model = np.concatenate(extra_m)
     out = group_rows(flat_rows, flat_demo, ds.D), bounded, (flat_rows, flat_demo, flat_model)
     if len(memo) >= _CF_CACHE_SIZE:
         memo.pop(next(iter(memo)))

@@ -14,6 +14,9 @@ from typing import Annotated, Any
 import typer
 
 _PROFILE_HELP = "reference: the authors' deterministic choices; default: ours (docs/profiles.md)."
+_UNBOUNDED_HELP = ("Human models with unbounded values: skip (give nothing, the reference and "
+                   "its profile) or loops (their positive loops are not rewarding; default "
+                   "profile).")
 
 
 def _fail(msg: str) -> None:
@@ -66,6 +69,8 @@ def register(app: typer.Typer) -> None:
             help="Pick the gain closest to this share of the best, in (0, 1] (default: "
                  "1; the reference profile uses 0.7 for counterfactual_only in delivery "
                  "and skateboard).")] = None,
+        unbounded_models: Annotated[str | None, typer.Option(
+            help=_UNBOUNDED_HELP)] = None,
         out: Annotated[Path | None, typer.Option("--out", "-o",
                                                  help="Write the JSON here.")] = None,
         show: Annotated[bool, typer.Option(
@@ -77,7 +82,8 @@ def register(app: typer.Typer) -> None:
         try:
             cur = teach(domain, condition, profile=profile, seed=seed,
                         human_models=human_models, max_demos=max_demos,
-                        proportion=proportion, progress=sys.stderr.isatty())
+                        proportion=proportion, unbounded_models=unbounded_models,
+                        progress=sys.stderr.isatty())
         except (ValueError, TypeError) as exc:
             _fail(str(exc))
         data = cur.to_json()
@@ -99,6 +105,8 @@ def register(app: typer.Typer) -> None:
         seed: Annotated[int, typer.Option(help="Seed of everything random.")] = 0,
         human_models: Annotated[int, typer.Option(
             "--human-models", "-m", help="Human models sampled from the posterior.")] = 8,
+        unbounded_models: Annotated[str | None, typer.Option(
+            help=_UNBOUNDED_HELP)] = None,
         out: Annotated[Path | None, typer.Option("--out", "-o",
                                                  help="Write the JSON here.")] = None,
     ) -> None:
@@ -115,6 +123,7 @@ def register(app: typer.Typer) -> None:
             ts = select_tests(domain, training=curricula, profile=profile, seed=seed,
                               per_level=per_level, human_models=human_models,
                               include_candidates=all_candidates,
+                              unbounded_models=unbounded_models,
                               progress=sys.stderr.isatty())
         except (ValueError, TypeError) as exc:
             _fail(str(exc))

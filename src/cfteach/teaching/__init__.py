@@ -17,7 +17,7 @@ import sys
 from collections.abc import Iterable
 from typing import Any
 
-from cfteach.bec import resolve_domain
+from cfteach.bec import DEFAULT_UNBOUNDED, check_unbounded, resolve_domain
 from cfteach.bec.demos import PROFILES, check_profile, demo_set
 from cfteach.domains import Domain
 from cfteach.teaching.common import (
@@ -61,10 +61,18 @@ class _Ticker:
 
 def teach(domain: Domain | str, condition: str, *, profile: str = "default", seed: int = 0,
           human_models: int = 8, max_demos: int | None = None,
-          proportion: float | None = None, progress: bool = False) -> Curriculum:
-    """The curriculum one condition shows (see the module docstring)."""
+          proportion: float | None = None, unbounded_models: str | None = None,
+          progress: bool = False) -> Curriculum:
+    """The curriculum one condition shows (see the module docstring).
+
+    `unbounded_models`: what a human model with unbounded values in an instance contributes
+    there: ``"skip"`` nothing (the reference), ``"loops"`` the constraints that its positive
+    loops are not rewarding (default profile); docs/profiles.md.
+    """
     check_condition(condition)
     check_profile(profile)
+    rule = check_unbounded(DEFAULT_UNBOUNDED[profile] if unbounded_models is None
+                           else unbounded_models)
     _check_int("seed", seed, 0)
     _check_int("human_models", human_models, 1)
     dom = resolve_domain(domain)
@@ -72,7 +80,8 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
     k = default_max_demos(ds) if max_demos is None else _check_int("max_demos", max_demos, 1)
     p = default_proportion(profile, condition, dom.name) if proportion is None \
         else check_proportion(proportion)
-    settings: dict[str, Any] = {"human_models": human_models, "max_demos": k, "proportion": p}
+    settings: dict[str, Any] = {"human_models": human_models, "max_demos": k, "proportion": p,
+                                "unbounded_models": rule}
     tick = _Ticker(progress, k, f"{dom.name} {condition}")
     try:
         if condition in ("counterfactual_only", "proposed"):
@@ -80,12 +89,12 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
 
             records, final, log = counterfactual_curriculum(
                 ds, feature_scaffolding=condition == "proposed", human_models=human_models,
-                max_demos=k, proportion=p, seed=seed, tick=tick)
+                max_demos=k, proportion=p, seed=seed, unbounded=rule, tick=tick)
         else:
             from cfteach.teaching.baseline import baseline_curriculum
 
-            settings.pop("proportion")
-            settings.pop("human_models")
+            for key in ("proportion", "human_models", "unbounded_models"):
+                settings.pop(key)
             records, final, log = baseline_curriculum(
                 ds, feature_scaffolding=condition == "feature_only", max_demos=k, seed=seed)
     finally:
@@ -98,11 +107,13 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
 def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
                  profile: str = "default", seed: int = 0, per_level: int = 6,
                  human_models: int = 8, include_candidates: bool = False,
-                 progress: bool = False) -> TestSet:
+                 unbounded_models: str | None = None, progress: bool = False) -> TestSet:
     """Tests of low / medium / high difficulty (Algorithm 2), excluding training demos."""
     from cfteach.teaching.testsel import select
 
     check_profile(profile)
+    rule = check_unbounded(DEFAULT_UNBOUNDED[profile] if unbounded_models is None
+                           else unbounded_models)
     _check_int("seed", seed, 0)
     _check_int("per_level", per_level, 0)
     _check_int("human_models", human_models, 1)
@@ -111,12 +122,12 @@ def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
     tick = _Ticker(progress, 1, f"{dom.name} tests")
     try:
         parts = select(ds, training=list(training), seed=seed, per_level=per_level,
-                       human_models=human_models)
+                       human_models=human_models, unbounded=rule)
         tick("overlaps")
     finally:
         tick.close()
     settings = {"human_models": human_models, "per_level": per_level,
                 "n_clusters": len(parts["cluster_centres"]),
-                "all_optimal_actions_cap": 50}
+                "all_optimal_actions_cap": 50, "unbounded_models": rule}
     return TestSet(domain=dom, profile=profile, seed=seed, settings=settings,
                    include_candidates=include_candidates, demo_set=ds, **parts)

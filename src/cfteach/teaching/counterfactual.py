@@ -112,6 +112,7 @@ def counterfactual_curriculum(
     max_demos: int,
     proportion: float,
     seed: int,
+    unbounded: str | None = None,
     tick: Callable[[str], None] | None = None,
 ) -> tuple[list[DemoRecord], Region, list[dict]]:
     """Run Algorithm 1. Returns (chosen demos, final belief, per-round log)."""
@@ -135,7 +136,7 @@ def counterfactual_curriculum(
         if not len(W):
             log.append({"round": len(chosen), "stop": "no human model inside the belief"})
             break
-        joint, bounded, _ = counterfactual_rows(ds, W)
+        joint, bounded, _ = counterfactual_rows(ds, W, unbounded=unbounded)
         gains_all = knowledge_gains(running, joint)
         cands: list[int] = []
         while True:

@@ -80,10 +80,11 @@ def all_optimal_actions(ds: DemoSet, d: int, cap: int = ALL_OPTIMAL_CAP) -> list
     return out
 
 
-def overlaps_of(ds: DemoSet, belief: Region, W: np.ndarray) -> tuple[np.ndarray, Any]:
+def overlaps_of(ds: DemoSet, belief: Region, W: np.ndarray,
+                unbounded: str | None = None) -> tuple[np.ndarray, Any]:
     """area(B & BEC'(xi)) for every demo, and the joint BEC' row sets."""
     if len(W):
-        cf, _, _ = counterfactual_rows(ds, W)
+        cf, _, _ = counterfactual_rows(ds, W, unbounded=unbounded)
         joint = one_action_rows(ds).union(cf)
     else:
         joint = one_action_rows(ds)
@@ -92,7 +93,7 @@ def overlaps_of(ds: DemoSet, belief: Region, W: np.ndarray) -> tuple[np.ndarray,
 
 
 def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
-           human_models: int) -> dict[str, Any]:
+           human_models: int, unbounded: str | None = None) -> dict[str, Any]:
     """Run Algorithm 2; returns the pieces a `TestSet` is made of."""
     from sklearn.cluster import KMeans
 
@@ -100,7 +101,7 @@ def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
     belief = Region(np.asarray(ds.domain.posterior, dtype=np.int64), dim=F)
     W = sample_models(ds.profile, belief.reduced(), human_models,
                       np.random.default_rng([seed, 3]), F)
-    overlaps, joint = overlaps_of(ds, belief, W)
+    overlaps, joint = overlaps_of(ds, belief, W, unbounded)
     excluded = training_keys(ds, training)
     pool_mask = np.ones(ds.D, dtype=bool)
     for e, s in excluded:
