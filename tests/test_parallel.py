@@ -163,3 +163,21 @@ def test_ray_missing_gives_install_hint() -> None:
 
 def test_public_names() -> None:
     assert set(parallel.BACKENDS) == {"local", "dask", "ray"}
+
+
+@pytest.mark.slow
+def test_dask_executor_joins_an_existing_cluster_and_leaves_it_running() -> None:
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    chunks = chunked(DATA, chunk_size=10)
+    expected = map_chunks(_draw, chunks, n_workers=1, seed=9)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None, silence_logs=logging.ERROR) as cluster:
+        got = map_chunks(_draw, chunks, backend="dask", scheduler=cluster.scheduler_address,
+                         seed=9)
+        for a, b in zip(expected, got, strict=True):
+            np.testing.assert_array_equal(a, b)
+        with Client(cluster) as client:  # still up: the executor only joined it
+            assert client.submit(sum, [1, 2]).result() == 3
