@@ -120,11 +120,28 @@ def test_a_learner_who_knows_w_star_answers_every_test_optimally(name: str) -> N
 def test_unbounded_samples_are_redrawn_or_fail() -> None:
     dom = load("tiles")
     tests = _tests(dom, 12, seed=2)
-    strict = Learners(dom, learner_model("counterfactual", resample_unbounded=False), 16, rng=4)
+    strict = Learners(dom, learner_model("counterfactual", unbounded="drop"), 16, rng=4)
     fin_strict = strict.answer(tests)["finished"]
     assert not fin_strict.all()  # prior samples with positive tile weights loop forever
-    lenient = Learners(dom, "counterfactual", 16, rng=4)
-    assert lenient.answer(tests)["finished"].all()
+    for rule in ("loops", "resample"):
+        lenient = Learners(dom, learner_model("counterfactual", unbounded=rule), 16, rng=4)
+        assert lenient.answer(tests)["finished"].all()
+
+
+def test_loops_rule_learns_that_paying_loops_do_not_pay() -> None:
+    dom = load("tiles")
+    demo = make_demo(dom, 511, 0)  # every tile present: positive tile weights would loop
+    areas = {}
+    for rule in ("loops", "drop"):
+        learners = Learners(dom, learner_model("counterfactual", unbounded=rule), 12, rng=0)
+        learners.observe(demo)
+        assert learners.contains(dom.weights).all()
+        areas[rule] = learners.belief_areas()
+        if rule == "loops":
+            rows = np.vstack(learners.beliefs)
+            # leaving an A (B) tile and coming back does not pay: -A - 2 step >= 0 etc.
+            assert any(r[0] < 0 and r[1] == 0 for r in rows)
+    assert areas["loops"].mean() < areas["drop"].mean()
 
 
 def test_bad_input_is_named() -> None:
@@ -183,9 +200,9 @@ def test_real_proposed_curriculum_keeps_w_star_and_beats_no_teaching() -> None:
 
 
 def test_learner_specs_from_the_command_line() -> None:
-    m = learner_model("noisy:temperature=0.1:human_models=3:resample_unbounded=false")
-    assert (m.temperature, m.human_models, m.resample_unbounded) == (0.1, 3, False)
-    assert m.name == "noisy:temperature=0.1:human_models=3:resample_unbounded=false"
+    m = learner_model("noisy:temperature=0.1:human_models=3:unbounded=drop:all_suffixes=1")
+    assert (m.temperature, m.human_models, m.unbounded, m.all_suffixes) == (0.1, 3, "drop", True)
+    assert m.name == "noisy:temperature=0.1:human_models=3:unbounded=drop:all_suffixes=1"
     assert learner_model("irl").name == "irl"
     with pytest.raises(ValueError, match="bad learner option 'speed=2'"):
         learner_model("noisy:speed=2")
@@ -193,3 +210,5 @@ def test_learner_specs_from_the_command_line() -> None:
         learner_model("noisy:temperature=hot")
     with pytest.raises(ValueError, match="temperature must be >= 0"):
         learner_model("noisy:temperature=-1")
+    with pytest.raises(ValueError, match="unbounded must be one of loops, resample, drop"):
+        learner_model("noisy:unbounded=ignore")

@@ -22,12 +22,19 @@ start state — greedily, or Boltzmann-rationally for the noisy model. Answers a
 exactly as the study scores people (`cfteach.simulate.scoring`).
 
 Weights that make a reward-gaining loop in an environment (e.g. a positive path weight in
-skateboard) have no finite plan. The reference's teacher silently drops such human models;
-by default (`resample_unbounded=True`) a learner instead imagines only robots that finish
-their task — it has only ever seen demonstrations that end — and redraws such a sample (up
-to `MAX_REDRAWS` times) both when forming counterfactuals and when answering tests. With
-`resample_unbounded=False` unbounded samples give no counterfactual (the reference's
-rule) and a test answered with one never finishes, so it is wrong.
+skateboard) have no finite plan. What a learner does with such a sample is the model's
+`unbounded` setting:
+
+* ``"loops"`` (default; the teacher's default profile, `cfteach.bec.loop_rows`): the
+  demonstration shows the robot *not* taking the loop that sample would take forever, so
+  the learner concludes that the loop does not pay: ``-mu(loop) . w >= 0`` for every paying
+  loop of length 1 or 2 under that sample.
+* ``"resample"``: the learner imagines only robots that finish their task — it has only
+  seen demonstrations that end — and redraws the sample (up to `MAX_REDRAWS` times).
+* ``"drop"``: the reference's rule: the sample gives no counterfactual, and a test answered
+  with it never finishes (so it is wrong).
+
+When answering tests, ``"loops"`` and ``"resample"`` learners redraw such samples.
 """
 
 from __future__ import annotations
@@ -41,6 +48,8 @@ import numpy as np
 from cfteach.simulate.planning import best_finishing_tied, boltzmann_rollouts, follow
 from cfteach.simulate.scoring import score_answers
 
+#: What a learner does with a weight sample that has no finite plan (module docstring).
+UNBOUNDED_RULES = ("loops", "resample", "drop")
 #: How often a learner redraws a weight sample that has no finite plan in an environment.
 MAX_REDRAWS = 20
 #: Weight samples drawn from a belief at a time (see `Learners._draw`).
@@ -56,7 +65,7 @@ class LearnerModel:
     human_models: int = 8
     all_suffixes: bool = True
     temperature: float = 0.0
-    resample_unbounded: bool = True
+    unbounded: str = "loops"
 
     def __post_init__(self) -> None:
         if self.constraints not in ("counterfactual", "one_step"):
@@ -66,6 +75,9 @@ class LearnerModel:
             raise ValueError(f"human_models must be at least 1, got {self.human_models}")
         if self.temperature < 0:
             raise ValueError(f"temperature must be >= 0, got {self.temperature}")
+        if self.unbounded not in UNBOUNDED_RULES:
+            raise ValueError(f"unbounded must be one of {', '.join(UNBOUNDED_RULES)}, "
+                             f"got {self.unbounded!r}")
 
 
 LEARNER_MODELS: dict[str, LearnerModel] = {
@@ -76,7 +88,7 @@ LEARNER_MODELS: dict[str, LearnerModel] = {
 
 
 _FIELD_TYPES = {"human_models": int, "all_suffixes": bool, "temperature": float,
-                "resample_unbounded": bool}
+                "unbounded": str}
 
 
 def parse_learner(spec: str) -> LearnerModel:
@@ -188,11 +200,13 @@ class Learners:
             self._star[env] = vals.Q[0, 0]
         return self._star[env]
 
-    def _plan_samples(self, env: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+    def _plan_samples(self, env: int, m: int, redraw: bool
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Draw `m` weight vectors from every learner's belief and plan with them in one
-        instance: `Q[n*m, S, A]` (learner i owns rows i*m .. i*m+m-1) and `bounded[n*m]`.
+        instance: `W[n*m, F]`, `Q[n*m, S, A]` (learner i owns rows i*m .. i*m+m-1) and
+        `bounded[n*m]`.
 
-        With `resample_unbounded`, samples with no finite plan are replaced: each round draws
+        With `redraw`, samples with no finite plan are replaced: each round draws
         a batch of candidates (twice as many as still needed, growing) for every learner
         still short, plans them all in one value iteration, and keeps the first bounded
         ones in draw order; after `MAX_REDRAWS` candidates per needed sample the remaining
@@ -200,14 +214,15 @@ class Learners:
         """
         from cfteach.mdp import value_iteration
 
-        S, A = self.batch.S, self.batch.A
+        S, A, F = self.batch.S, self.batch.A, self.batch.F
+        w_out = np.zeros((self.n * m, F))
         q = np.zeros((self.n * m, S, A))
         bounded = np.zeros(self.n * m, dtype=bool)
         filled = np.zeros(self.n, dtype=np.int64)
-        spare: dict[int, list[np.ndarray]] = {}
-        budget = m * (MAX_REDRAWS + 1) if self.model.resample_unbounded else m
+        spare: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+        budget = m * (MAX_REDRAWS + 1) if redraw else m
         drawn = np.zeros(self.n, dtype=np.int64)
-        factor = 1 if not self.model.resample_unbounded else 2
+        factor = 2 if redraw else 1
         while True:
             short = [i for i in range(self.n) if filled[i] < m and drawn[i] < budget]
             if not short:
@@ -220,18 +235,19 @@ class Learners:
                 drawn[i] += k
                 for j in range(row, row + k):
                     if filled[i] < m and vals.bounded[0, j]:
+                        w_out[i * m + filled[i]] = W[j]
                         q[i * m + filled[i]] = vals.Q[0, j]
                         bounded[i * m + filled[i]] = True
                         filled[i] += 1
                     elif not vals.bounded[0, j]:
-                        spare.setdefault(i, []).append(vals.Q[0, j])
+                        spare.setdefault(i, []).append((W[j], vals.Q[0, j]))
                 row += k
             factor *= 2
         for i in range(self.n):  # out of draws: keep unbounded samples (no finite plan)
             while filled[i] < m:
-                q[i * m + filled[i]] = spare[i].pop(0)
+                w_out[i * m + filled[i]], q[i * m + filled[i]] = spare[i].pop(0)
                 filled[i] += 1
-        return q, bounded
+        return w_out, q, bounded
 
     def replay(self, item: dict[str, Any]) -> Replay:
         """Replay a demonstration/test dict (docs/schemas.md) in the compiled instance."""
@@ -304,7 +320,7 @@ class Learners:
         from cfteach.mdp import tied_actions
 
         m = self.model.human_models
-        q, bounded = self._plan_samples(rep.env, m)
+        W, q, bounded = self._plan_samples(rep.env, m, self.model.unbounded == "resample")
         tied = tied_actions(q)
         T = len(rep.actions) if self.model.all_suffixes else 1
         starts = rep.states[:T]
@@ -312,10 +328,19 @@ class Learners:
         mu_h, found = best_finishing_tied(nxt, feats, tied, self.w_true, starts)
         found &= bounded[:, None]
         diffs = rep.mu_suffix[None, :T] - mu_h                 # [N*m, T, F]
+        loops: dict[int, np.ndarray] = {}
+        if self.model.unbounded == "loops" and not bounded.all():
+            from cfteach.bec import loop_rows
+
+            bad = np.flatnonzero(~bounded)
+            rows = loop_rows(self.batch, W, np.full(bad.size, rep.env), bad)
+            loops = dict(zip(bad.tolist(), rows, strict=True))
         out = []
         for i in range(self.n):
             sl = slice(i * m, (i + 1) * m)
-            out.append(_as_constraints(diffs[sl][found[sl]]))
+            mine = [diffs[sl][found[sl]]]
+            mine += [loops[j] for j in range(i * m, (i + 1) * m) if j in loops]
+            out.append(_as_constraints(np.vstack(mine)))
         return out
 
     def teach(self, demos: Sequence[dict[str, Any]]) -> None:
@@ -364,7 +389,7 @@ class Learners:
             for j in js:
                 opt = tests[j].get("optimal_reward")
                 optimal[j] = float(v_star[starts[j]]) if opt is None else float(opt)
-            q, bounded = self._plan_samples(env, 1)
+            _, q, bounded = self._plan_samples(env, 1, self.model.unbounded != "drop")
             st = np.broadcast_to(starts[js], (self.n, len(js)))
             nxt, feats = self.batch.next_state[env], self.batch.features[env]
             max_steps = 4 * int(self.batch.n_states[env]) + 4
