@@ -80,6 +80,9 @@ def register(app: typer.Typer) -> None:
 
 def _print_summary(summ: dict) -> None:
     rows = summ["proportion_optimal"]
+    if not rows:
+        typer.echo("no selected tests were answered (empty test set)")
+        return
     scope = "all" if any(r["domain"] == "all" for r in rows) else None
     for model in sorted({r["learner_model"] for r in rows}):
         typer.echo(f"\nlearner model: {model}   (proportion optimal [95% CI], "
