@@ -127,4 +127,9 @@ def register(app: typer.Typer) -> None:
                               progress=sys.stderr.isatty())
         except (ValueError, TypeError) as exc:
             _fail(str(exc))
-        _emit(ts.to_json(), out)
+        data = ts.to_json()
+        for level, items in data["tests"].items():
+            if len(items) < per_level:
+                typer.echo(f"note: only {len(items)} {level}-difficulty candidates in their "
+                           f"cluster (asked for {per_level})", err=True)
+        _emit(data, out)
