@@ -22,11 +22,10 @@ from cfteach.bec import (
     primitive,
 )
 from cfteach.domains import load
-from cfteach.geometry import Region
+from cfteach.geometry import Region, sample_reference_grid
 from cfteach.mdp import tied_actions, value_iteration
 from cfteach.mdp.rollout import rollout
 from cfteach.teaching.common import nonzero_counts, one_step_sets
-from cfteach.teaching.sampling import reference_grid_sample
 
 DOMAINS = ["delivery", "tiles", "skateboard"]
 
@@ -97,7 +96,7 @@ def test_single_demo_api_matches_batch() -> None:
     assert as_set(red) == as_set(Region(brute_list(brute_one_action_rows(ds, d))).reduced())
     inst = ds.instance(d)
     assert as_set(one_action_constraints(dom, e, inst.state_to_json(s))) == as_set(red)
-    W = reference_grid_sample(np.array([[0, 0, -1]]), 8)
+    W = sample_reference_grid(np.array([[0, 0, -1]]), 8)
     joint, _, _ = counterfactual_rows(ds, W)
     single = counterfactual_constraints(dom, e, s, W)
     assert as_set(single) == as_set(Region(joint.of(d)).reduced())
@@ -114,7 +113,7 @@ def test_reference_values_match_value_iteration(name: str) -> None:
     """The shortcut (skip positive-cycle pairs) gives value_iteration's reference answer."""
     dom = load(name)
     ds = demo_set(dom, "reference")
-    W = reference_grid_sample(np.array([[0, 0, -1]]), 8)
+    W = sample_reference_grid(np.array([[0, 0, -1]]), 8)
     ref = value_iteration(ds.batch, W, method="reference")
     bounded, (pe, pm), Q = human_values(ds.batch, W, "reference")
     assert np.array_equal(bounded, ref.bounded)
@@ -147,7 +146,7 @@ def dfs_reference(inst, state, tied_of, w, horizon=25, limit=10):  # noqa: ANN00
 def test_human_trajectories_match_depth_first_enumeration(name: str, profile: str) -> None:
     dom = load(name)
     ds = demo_set(dom, profile)
-    W = reference_grid_sample(np.array([[0, 0, -1]]), 8)
+    W = sample_reference_grid(np.array([[0, 0, -1]]), 8)
     vals = value_iteration(ds.batch, W, method="exact" if profile == "default" else "reference")
     tied = tied_actions(vals.Q)
     mu_ref, bounded = human_mu(ds, W, reference_ties=True)
@@ -180,7 +179,7 @@ def test_human_trajectories_match_depth_first_enumeration(name: str, profile: st
 @pytest.mark.parametrize("name", ["skateboard", "delivery"])
 def test_fast_gains_equal_plain_region_ops(name: str) -> None:
     ds = demo_set(load(name), "default")
-    W = reference_grid_sample(np.array([[0, 0, -1]]), 8)
+    W = sample_reference_grid(np.array([[0, 0, -1]]), 8)
     joint, _, _ = counterfactual_rows(ds, W, method="exact", reference_ties=False)
     rng = np.random.default_rng(5)
     for running_rows in ([[0, 0, -1]], POLICY_BEC[name], ds.domain.posterior,

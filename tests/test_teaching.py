@@ -18,17 +18,8 @@ from cfteach.teaching.common import masking_order
 from cfteach.teaching.counterfactual import candidate_set
 from cfteach.teaching.visual import reference_dissimilarity, tie_break
 from cfteach.teaching.visual_arrays import dissimilarity_matrix
+from test_geometry_human_models import PRIOR_SAMPLES as SPEC_MODELS  # spec §6.1's eight
 
-SPEC_MODELS = np.array([
-    [-0.99999382, -0.00314473, -0.00157237],
-    [0.99676256, 0.0803861, -0.00157237],
-    [0.04179665, -0.9991249, -0.00157237],
-    [-1.22464074e-16, -3.85118623e-19, -1.0],
-    [-0.11821132, 0.98752987, -0.1039752],
-    [0.61809503, -0.54678432, -0.56478796],
-    [-0.57026783, -0.59649741, -0.56478796],
-    [0.4987527, 0.60975637, -0.61598937],
-])
 MASKS = {"delivery": ["hotswap", "toll", "step"], "tiles": ["B", "A", "step"],
          "skateboard": ["path_step", "base_step", "skateboard_step"]}
 COUNTS = {"delivery": [9480, 1763, 15979], "tiles": [10875, 8927, 21526],
