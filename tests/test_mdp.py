@@ -280,3 +280,28 @@ def test_reference_shortcut_matches_full_reference_sweeps() -> None:
     assert np.array_equal(vals.sweeps.ravel(), sw)
     assert 0 < bnd.mean() < 1
     np.testing.assert_array_equal(vals.V.reshape(-1, b.S)[bnd], v[bnd])
+
+
+def test_skip_unstable_keeps_reference_flags_and_sweeps() -> None:
+    """Cheap no-op models take > 1000 reference sweeps; skipping them changes no flag or
+    sweep count, and bounded pairs keep exactly the swept values."""
+    from cfteach.mdp.vi import _cannot_stabilise
+
+    dom = load("delivery")
+    b = compile_domain(dom).subset([0, 9, 33, 63])
+    W = np.array([[-0.00124, -0.788, -0.616], [-0.999, -0.003, -0.0016], [-0.3, -0.3, -0.9],
+                  [0.2, -0.5, -0.8]])
+    full = value_iteration(b, W, method="reference")
+    fast = value_iteration(b, W, method="reference", skip_unstable=True)
+    assert np.array_equal(full.bounded, fast.bounded)
+    assert np.array_equal(full.sweeps, fast.sweeps)
+    np.testing.assert_array_equal(fast.V[fast.bounded], full.V[full.bounded])
+    exact = value_iteration(b, W, method="exact")
+    R = np.einsum("esaf,mf->emas", b.features, W).reshape(-1, b.A, b.S)
+    nxt = np.broadcast_to(b.next_state[:, None].transpose(0, 1, 3, 2),
+                          (b.E, len(W), b.A, b.S)).reshape(-1, b.A, b.S)
+    valid = np.broadcast_to(b.valid[:, None], (b.E, len(W), b.S)).reshape(-1, b.S)
+    stuck = _cannot_stabilise(R, nxt, valid, exact.V.reshape(-1, b.S)).reshape(b.E, len(W))
+    assert stuck.any() and exact.bounded[stuck].all()  # the shortcut is exercised
+    assert not full.bounded[stuck].any() and (full.sweeps[stuck] == 1000).all()
+    np.testing.assert_array_equal(fast.V[stuck], exact.V[stuck])  # documented: true values

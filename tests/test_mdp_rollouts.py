@@ -189,3 +189,20 @@ def test_best_tied_rejects_bad_shapes() -> None:
         best_tied_trajectories(b, np.zeros((b.E, b.S, b.A)), np.ones(3))
     with pytest.raises(ValueError, match="w_true"):
         best_tied_trajectories(b, np.zeros((b.E, 1, b.S, b.A)), np.ones(4))
+
+
+def test_best_tied_mu_on_pairs_matches_grid() -> None:
+    from cfteach.mdp import best_tied_mu
+
+    dom = load("tiles")
+    b = compile_domain(dom).subset([0, 77, 300])
+    W = np.array([[0.0, 0.0, -1.0], [-0.3, 0.0, -0.6], [0.5, 0.2, 0.1], list(dom.weights)])
+    vals = value_iteration(b, W)
+    grid = best_tied_trajectories(b, vals.Q, dom.weights)
+    pe, pm = np.nonzero(vals.bounded)
+    assert 0 < len(pe) < vals.bounded.size
+    mu = best_tied_mu(b, pe, vals.Q[pe, pm], dom.weights)
+    assert mu.dtype == np.int64
+    assert np.array_equal(mu, grid.mu[pe, pm])
+    with pytest.raises(ValueError, match="Q must have shape"):
+        best_tied_mu(b, pe, vals.Q[pe, pm][:, :, :2], dom.weights)

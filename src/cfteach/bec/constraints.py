@@ -7,7 +7,7 @@ One-action rows of demo d: for every step t and every action b other than the de
 Counterfactual rows of demo d under human model w_h (bounded values only): for every step t,
 ``suffix_mu[d, t] - mu(h*)``, where h* is the human's tied-optimal trajectory from s_t with the
 highest true reward ("benefit of the doubt"). The `reference` profile reproduces how the
-authors' code picks h* when more than 10 tied trajectories exist (see `_reference_first11`).
+authors' code picks h* when more than 10 tied trajectories exist (`cfteach.mdp.best_tied_mu`).
 """
 
 from __future__ import annotations
@@ -17,11 +17,7 @@ import numpy as np
 from cfteach.bec.demos import VI_METHOD, DemoSet
 from cfteach.bec.rows import RowSet, group_rows, primitive
 from cfteach.mdp import MDPBatch, value_iteration
-from cfteach.mdp.rollout import MAX_STEPS
-from cfteach.mdp.vi import REFERENCE_MAX_SWEEPS, REFERENCE_TOL, tied_actions
-
-#: The reference's depth-first enumeration stops expanding after MORE than this many paths.
-REFERENCE_TIED_LIMIT = 10
+from cfteach.mdp.tied import REFERENCE_TIED_LIMIT, best_tied_mu
 
 _CF_CACHE_SIZE = 8  # counterfactual row sets kept per DemoSet (keyed by the human models)
 
@@ -67,83 +63,16 @@ def human_mu(ds: DemoSet, W: np.ndarray, *, method: str | None = None,
 
 
 def human_values(batch: MDPBatch, W: np.ndarray, method: str,
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Values of the bounded (instance, model) pairs: ``(pair_env, pair_model, Q [P, S, A])``
-    plus ``bounded [E, M]``, returned as ``(bounded, (pe, pm), Q)``.
+                 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """Values of the bounded (instance, model) pairs, returned as
+    ``(bounded [E, M], (pair_env, pair_model), Q [P, S, A])``.
 
-    ``exact`` is `cfteach.mdp.value_iteration`. ``reference`` follows the same rule as
-    ``value_iteration(method="reference")`` (V0 = 0, synchronous sweeps, stabilised iff the
-    largest change drops to <= 1e-25 within 1000 sweeps), but only on the pairs the exact
-    solver finds free of positive-reward cycles: the others grow every sweep and can never
-    stabilise, and skipping their 1000 sweeps is most of the reference's planning time.
-    tests/test_bec.py checks the result against ``value_iteration`` itself.
+    `cfteach.mdp.value_iteration` with `method`; for ``reference`` without sweeping the pairs
+    that provably cannot stabilise (``skip_unstable``): only bounded pairs are used here.
     """
-    W = np.atleast_2d(np.asarray(W, dtype=float))
-    exact = value_iteration(batch, W, method="exact")
-    if method == "exact":
-        pe, pm = np.nonzero(exact.bounded)
-        return exact.bounded, (pe, pm), exact.Q[pe, pm]
-    if method != "reference":
-        raise ValueError(f"method must be 'exact' or 'reference', got {method!r}")
-    pe, pm = np.nonzero(exact.bounded)
-    R = np.einsum("psaf,pf->psa", batch.features[pe], W[pm])
-    nxt = batch.next_state[pe]
-    slow = _too_slow_for_reference(R, nxt, batch.valid[pe], exact.V[pe, pm])
-    pe, pm, R, nxt = pe[~slow], pm[~slow], R[~slow], nxt[~slow]
-    V, ok = _reference_sweeps(R, nxt)
-    bounded = np.zeros_like(exact.bounded)
-    bounded[pe[ok], pm[ok]] = True
-    flat = nxt + (np.arange(len(pe)) * batch.S)[:, None, None]
-    Q = R + V.reshape(-1)[flat]
-    return bounded, (pe[ok], pm[ok]), Q[ok]
-
-
-def _too_slow_for_reference(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
-                            v_exact: np.ndarray) -> np.ndarray:
-    """Pairs the reference cannot stabilise within 1000 sweeps, proven without sweeping.
-
-    From V0 = 0, after k sweeps V_k(s) >= k * (best self-loop reward at s). If every reward
-    is negative, every cycle is, so the only fixed point is the true V*; a state with
-    V*(s) < 999 * (best self-loop reward) is therefore still above V* at sweep 999, and the
-    sweeps cannot have stopped earlier. (Cheap no-ops make exactly these pairs, spec §3.)
-    """
-    s_n = R.shape[1]
-    loop = nxt == np.arange(s_n)[None, :, None]
-    r_loop = np.where(loop, R, -np.inf).max(axis=-1)  # [P, S]
-    all_neg = np.all(np.where(valid[..., None], R < 0, True), axis=(1, 2))
-    bound = (REFERENCE_MAX_SWEEPS - 1) * r_loop
-    margin = 1e-6 * (1.0 + np.abs(v_exact))
-    with np.errstate(invalid="ignore"):
-        stuck = valid & np.isfinite(r_loop) & (v_exact < bound - margin)
-    return all_neg & stuck.any(axis=1)
-
-
-def _reference_sweeps(R: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """V0 = 0 synchronous sweeps; (V [P, S], stabilised [P])."""
-    p_n, s_n, _ = R.shape
-    V = np.zeros((p_n, s_n))
-    ok = np.zeros(p_n, dtype=bool)
-    act = np.arange(p_n)
-    Va = V.copy()
-    Ra = np.ascontiguousarray(np.moveaxis(R, 2, 0))  # [A, P, S]: maxima over A elementwise
-    nxt_a = np.moveaxis(nxt, 2, 0)
-    flat = nxt_a + (np.arange(p_n) * s_n)[None, :, None]
-    for k in range(1, REFERENCE_MAX_SWEEPS + 1):
-        if not act.size:
-            break
-        v = Va.ravel()
-        Vn = Ra[0] + v[flat[0]]
-        for a in range(1, Ra.shape[0]):
-            np.maximum(Vn, Ra[a] + v[flat[a]], out=Vn)
-        done = np.abs(Vn - Va).max(axis=-1) <= REFERENCE_TOL
-        Va = Vn
-        if done.any():
-            V[act[done]] = Va[done]
-            ok[act[done]] = k < REFERENCE_MAX_SWEEPS
-            keep = ~done
-            act, Va, Ra = act[keep], Va[keep], Ra[:, keep]
-            flat = nxt_a[:, act] + (np.arange(act.size) * s_n)[None, :, None]
-    return V, ok
+    vals = value_iteration(batch, W, method=method, skip_unstable=True)
+    pe, pm = np.nonzero(vals.bounded)
+    return vals.bounded, (pe, pm), vals.Q[pe, pm]
 
 
 def human_mu_batch(batch: MDPBatch, w_true: np.ndarray, W: np.ndarray, *, method: str,
@@ -153,110 +82,10 @@ def human_mu_batch(batch: MDPBatch, w_true: np.ndarray, W: np.ndarray, *, method
     bounded, (pe, pm), Qp = human_values(batch, W, method)
     e_n, m_n = bounded.shape
     mu = np.zeros((e_n, m_n, batch.S, batch.F), dtype=np.int64)
-    if not len(pe):
-        return mu, bounded
-    pairs = _Pairs(batch, pe, Qp)
-    mu_p = pairs.best_tied(w_true)
-    if reference_ties:
-        fix = pairs.reference_first11(w_true)
-        if fix is not None:
-            p, s, mu_fix = fix
-            mu_p[p, s] = mu_fix
-    mu[pe, pm] = mu_p
+    if len(pe):
+        mu[pe, pm] = best_tied_mu(batch, pe, Qp, w_true, reference_limit=(
+            REFERENCE_TIED_LIMIT if reference_ties else None))
     return mu, bounded
-
-
-class _Pairs:
-    """Planning data of P bounded (instance, model) pairs, flattened for fast gathers."""
-
-    def __init__(self, batch: MDPBatch, env: np.ndarray, Q: np.ndarray) -> None:
-        self.P, self.S, self.A, self.F = len(env), batch.S, batch.A, batch.F
-        self.sink = batch.sink
-        self.real = batch.valid[env]  # [P, S]
-        self.tied = tied_actions(Q) & self.real[..., None]  # [P, S, A]
-        self.nxt = batch.next_state[env]  # [P, S, A]
-        self.flat_nxt = self.nxt + (np.arange(self.P) * self.S)[:, None, None]
-        self.phi = batch.features[env]  # [P, S, A, F] float, integer-valued
-
-    def best_tied(self, w_true: np.ndarray) -> np.ndarray:
-        """mu [P, S, F] of the tied trajectory (horizon 25) with the highest true reward.
-
-        A max-plus DP over the horizon; ``w . mu`` is evaluated on the integer feature counts
-        (like the reference), so equal counts compare equal and ties go to the first action,
-        i.e. to the first trajectory of the reference's depth-first enumeration.
-        """
-        w = np.asarray(w_true, dtype=float)
-        n = self.P * self.S
-        phi = [np.ascontiguousarray(self.phi[..., f]) for f in range(self.F)]
-        mu = [np.zeros(n) for _ in range(self.F)]
-        neg = np.where(self.tied, 0.0, -np.inf)
-        real = self.real.reshape(-1)
-        row = np.arange(n) * self.A
-        for _ in range(MAX_STEPS):
-            cand = [phi[f] + mu[f][self.flat_nxt] for f in range(self.F)]  # [P, S, A] each
-            val = neg.copy()
-            for f in range(self.F):
-                val += w[f] * cand[f]
-            pick = row + np.argmax(val, axis=-1).reshape(-1)
-            new = [np.where(real, cand[f].reshape(-1)[pick], 0.0) for f in range(self.F)]
-            if all(np.array_equal(a, b) for a, b in zip(new, mu, strict=True)):
-                break  # a fixed point: longer horizons choose the same trajectories
-            mu = new
-        out = np.stack(mu, axis=-1)
-        return np.rint(out).astype(np.int64).reshape(self.P, self.S, self.F)
-
-    def path_counts(self, cap: int) -> np.ndarray:
-        """N[k, P*S]: tied paths with k steps left (terminal / horizon end = 1), capped."""
-        N = np.ones((MAX_STEPS + 1, self.P * self.S), dtype=np.int64)
-        real = self.real.reshape(-1)
-        for k in range(1, MAX_STEPS + 1):
-            tot = np.where(self.tied, N[k - 1][self.flat_nxt], 0).sum(axis=-1).reshape(-1)
-            N[k] = np.where(real, np.minimum(tot, cap), 1)
-            if np.array_equal(N[k], N[k - 1]):
-                N[k + 1 :] = N[k]  # a fixed point of the recursion
-                break
-        return N
-
-    def reference_first11(self, w_true: np.ndarray):  # noqa: ANN201
-        """Where more than 10 tied trajectories start at a state, the reference records only
-        the first 11 in depth-first action order (it stops expanding once more than 10 are
-        recorded) and keeps the best of those by true reward, first on exact ties. Unrank
-        exactly those 11 paths from the path counts; returns ``(pair, state, mu)`` or None.
-        """
-        R = REFERENCE_TIED_LIMIT + 1
-        N = self.path_counts(cap=R)
-        idx = np.flatnonzero((N[MAX_STEPS] > REFERENCE_TIED_LIMIT) & self.real.reshape(-1))
-        if not len(idx):
-            return None
-        n = len(idx)
-        p = idx // self.S
-        cur = np.repeat(idx[:, None], R, axis=1)  # flat p * S + s
-        base = np.repeat((p * self.S)[:, None], R, axis=1)
-        rank = np.broadcast_to(np.arange(R), (n, R)).copy()
-        mu = np.zeros((n, R, self.F))
-        tied = self.tied.reshape(-1, self.A)
-        flat_nxt = self.flat_nxt.reshape(-1, self.A)
-        phi = self.phi.reshape(-1, self.A, self.F)
-        sink = self.sink
-        for k in range(MAX_STEPS, 0, -1):
-            live = (cur - base) != sink
-            if not live.any():
-                break
-            nxt = flat_nxt[cur]  # [n, R, A]
-            cnt = np.where(tied[cur], N[k - 1][nxt], 0)
-            cum = np.cumsum(cnt, axis=-1)
-            a = np.argmax(cum > rank[..., None], axis=-1)
-            before = np.where(a > 0, np.take_along_axis(cum, np.maximum(a - 1, 0)[..., None],
-                                                        axis=-1)[..., 0], 0)
-            mu += np.where(live[..., None],
-                           np.take_along_axis(phi[cur], a[..., None, None], axis=2)[:, :, 0],
-                           0.0)
-            rank = np.where(live, rank - before, rank)
-            cur = np.where(live, np.take_along_axis(nxt, a[..., None], axis=-1)[..., 0], cur)
-        val = mu @ np.asarray(w_true, dtype=float)
-        best = np.argmax(val, axis=1)  # ranks 0..10 all exist since the count exceeds 10
-        mu_best = np.rint(mu[np.arange(n), best]).astype(np.int64)
-        return p, idx % self.S, mu_best
 
 
 UNBOUNDED_RULES = ("skip", "loops")

@@ -11,7 +11,15 @@ where mu_k(s) is the feature count of the chosen length-k continuation. Comparin
 (the dot product of integer feature counts, like the reference) makes trajectories with equal
 feature counts compare exactly equal; such ties go to the first action in action order, which
 yields the lexicographically smallest action sequence, i.e. the first one the reference's
-depth-first enumeration finds.
+depth-first enumeration finds. The DP stops early at a fixed point (longer horizons then
+choose the same trajectories), which most (instance, model) pairs reach long before 25.
+
+Where more than 10 tied trajectories start at a state, the reference records only the first
+11 in depth-first order and keeps the best of those; `best_tied_mu(..., reference_limit=10)`
+reproduces that by unranking exactly those 11 paths from the path counts.
+
+All work is done on flat (instance, model) *pairs*: `best_tied_trajectories` solves a full
+``[E, M]`` grid, `best_tied_mu` only the pairs it is given (e.g. the bounded ones).
 """
 
 from __future__ import annotations
@@ -23,6 +31,9 @@ import numpy as np
 from cfteach.mdp.arrays import MDPBatch
 from cfteach.mdp.rollout import MAX_STEPS
 from cfteach.mdp.vi import TIE_TOL, tied_actions
+
+#: The reference's depth-first enumeration stops expanding after MORE than this many paths.
+REFERENCE_TIED_LIMIT = 10
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,6 +72,113 @@ class BestTied:
         return out
 
 
+class _Pairs:
+    """Planning data of P (instance, model) pairs, flattened to ``P * S`` rows for gathers."""
+
+    def __init__(self, batch: MDPBatch, env: np.ndarray, tied: np.ndarray) -> None:
+        self.P, self.S, self.A, self.F = len(env), batch.S, batch.A, batch.F
+        self.n = self.P * self.S
+        self.sink = batch.sink
+        self.real = batch.valid[env].reshape(-1)  # [n]
+        self.tied = (tied & batch.valid[env][..., None]).reshape(self.n, self.A)
+        self.flat_nxt = (batch.next_state[env]
+                         + (np.arange(self.P) * self.S)[:, None, None]).reshape(self.n, self.A)
+        phi = batch.features[env]  # [P, S, A, F] float, integer-valued
+        self.phi = phi.reshape(self.n, self.A, self.F)
+        self.phi_f = [np.ascontiguousarray(phi[..., f]).reshape(self.n, self.A)
+                      for f in range(self.F)]
+
+    def best(self, w: np.ndarray, horizon: int, record_first: bool,
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """The max-plus DP: (mu [n, F] float, length [n], feasible [n], first [H, n] | None).
+
+        Per-feature arrays instead of a trailing F axis keep every gather contiguous.
+        """
+        n, f_n = self.n, self.F
+        mu = [np.zeros(n) for _ in range(f_n)]
+        length = np.zeros(n, dtype=np.int64)
+        feasible = np.ones(n, dtype=bool)  # a trajectory of the current length exists
+        first = np.full((horizon, n), -1, dtype=np.int8) if record_first else None
+        row = np.arange(n) * self.A
+        flat = self.flat_nxt
+        for k in range(horizon):
+            ok = self.tied & feasible[flat]
+            cand = [self.phi_f[f] + mu[f][flat] for f in range(f_n)]  # [n, A] each
+            val = np.where(ok, 0.0, -np.inf)
+            for f in range(f_n):
+                val += w[f] * cand[f]
+            a = np.argmax(val, axis=-1)  # first arg-max in action order
+            take = ok.any(axis=-1) & self.real
+            pick = row + a
+            new_mu = [np.where(take, cand[f].reshape(-1)[pick], 0.0) for f in range(f_n)]
+            new_len = np.where(take, 1 + length[flat.reshape(-1)[pick]], 0)
+            new_feas = take | ~self.real  # the sink (and padding) always "end" fine
+            if first is not None:
+                first[k] = np.where(take, a, -1)
+            if (np.array_equal(new_len, length) and np.array_equal(new_feas, feasible)
+                    and all(np.array_equal(x, y) for x, y in zip(new_mu, mu, strict=True))):
+                if first is not None:  # a fixed point: longer horizons choose the same
+                    first[k + 1:] = first[k]
+                break
+            mu, length, feasible = new_mu, new_len, new_feas
+        return np.stack(mu, axis=-1), length, feasible, first
+
+    def path_counts(self, horizon: int, cap: int) -> np.ndarray:
+        """N[k, n]: tied paths with k steps left (terminal / horizon end = 1), capped."""
+        N = np.ones((horizon + 1, self.n), dtype=np.int64)
+        for k in range(1, horizon + 1):
+            tot = np.where(self.tied, N[k - 1][self.flat_nxt], 0).sum(axis=-1)
+            N[k] = np.where(self.real, np.minimum(tot, cap), 1)
+            if np.array_equal(N[k], N[k - 1]):
+                N[k + 1:] = N[k]  # a fixed point of the recursion
+                break
+        return N
+
+    def reference_firsts(self, w: np.ndarray, horizon: int, limit: int,
+                         ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Where more than `limit` tied trajectories start at a state, the reference records
+        only the first ``limit + 1`` in depth-first action order (it stops expanding once more
+        than `limit` are recorded) and keeps the best of those by true reward, first on exact
+        ties. Unrank exactly those paths from the path counts; returns ``(row, mu)`` or None.
+        """
+        R = limit + 1
+        N = self.path_counts(horizon, cap=R)
+        idx = np.flatnonzero((N[horizon] > limit) & self.real)
+        if not len(idx):
+            return None
+        n = len(idx)
+        cur = np.repeat(idx[:, None], R, axis=1)  # flat p * S + s
+        base = np.repeat(((idx // self.S) * self.S)[:, None], R, axis=1)
+        rank = np.broadcast_to(np.arange(R), (n, R)).copy()
+        mu = np.zeros((n, R, self.F))
+        for k in range(horizon, 0, -1):
+            live = (cur - base) != self.sink
+            if not live.any():
+                break
+            nxt = self.flat_nxt[cur]  # [n, R, A]
+            cnt = np.where(self.tied[cur], N[k - 1][nxt], 0)
+            cum = np.cumsum(cnt, axis=-1)
+            a = np.argmax(cum > rank[..., None], axis=-1)
+            before = np.where(a > 0, np.take_along_axis(cum, np.maximum(a - 1, 0)[..., None],
+                                                        axis=-1)[..., 0], 0)
+            mu += np.where(live[..., None],
+                           np.take_along_axis(self.phi[cur], a[..., None, None], axis=2)[:, :, 0],
+                           0.0)
+            rank = np.where(live, rank - before, rank)
+            cur = np.where(live, np.take_along_axis(nxt, a[..., None], axis=-1)[..., 0], cur)
+        best = np.argmax(mu @ w, axis=1)  # ranks 0..limit all exist since the count exceeds it
+        return idx, mu[np.arange(n), best]
+
+
+def _check_w(batch: MDPBatch, w_true: np.ndarray, horizon: int) -> np.ndarray:
+    w = np.asarray(w_true, dtype=float)
+    if w.shape != (batch.F,):
+        raise ValueError(f"w_true must have shape [{batch.F}], got {w.shape}")
+    if horizon < 1:
+        raise ValueError(f"horizon must be at least 1, got {horizon}")
+    return w
+
+
 def best_tied_trajectories(
     batch: MDPBatch,
     Q_h: np.ndarray,
@@ -83,50 +201,58 @@ def best_tied_trajectories(
     if Q_h.ndim != 4 or Q_h.shape[0] != batch.E or Q_h.shape[2:] != (batch.S, batch.A):
         raise ValueError(f"Q_h must have shape [E={batch.E}, M, S={batch.S}, A={batch.A}], "
                          f"got {Q_h.shape}")
-    w = np.asarray(w_true, dtype=float)
-    if w.shape != (batch.F,):
-        raise ValueError(f"w_true must have shape [{batch.F}], got {w.shape}")
-    if horizon < 1:
-        raise ValueError(f"horizon must be at least 1, got {horizon}")
+    w = _check_w(batch, w_true, horizon)
     e_n, m_n, s_n, a_n = Q_h.shape
-    f_n = batch.F
-    per_model = e_n * s_n * a_n * f_n * 8 * 3
+    per_model = e_n * s_n * a_n * batch.F * 8 * 3
     step = max(1, int(chunk_bytes // per_model))
-    if m_n > step:  # bound the [E, M, S, A, F] working arrays
+    if m_n > step:  # bound the working arrays
         parts = [best_tied_trajectories(batch, Q_h[:, i:i + step], w, horizon=horizon, tol=tol,
                                         chunk_bytes=chunk_bytes) for i in range(0, m_n, step)]
         return BestTied(first_action=np.concatenate([p.first_action for p in parts], axis=2),
                         mu=np.concatenate([p.mu for p in parts], axis=1),
                         value=np.concatenate([p.value for p in parts], axis=1),
                         length=np.concatenate([p.length for p in parts], axis=1), batch=batch)
-    tied = tied_actions(Q_h, tol) & batch.valid[:, None, :, None]
-    feats = batch.features[:, None]  # [E, 1, S, A, F]
-    nxt = batch.next_state  # [E, S, A]
-    e_idx = np.arange(e_n)[:, None, None, None]
-    m_idx = np.arange(m_n)[None, :, None, None]
-    nxt_b = nxt[:, None]  # [E, 1, S, A]
+    env = np.repeat(np.arange(e_n), m_n)
+    pairs = _Pairs(batch, env, tied_actions(Q_h, tol).reshape(e_n * m_n, s_n, a_n))
+    mu, length, feasible, first = pairs.best(w, horizon, record_first=True)
+    value = np.where(feasible | ~pairs.real, mu @ w, -np.inf)
+    return BestTied(first_action=first.reshape(horizon, e_n, m_n, s_n),
+                    mu=mu.reshape(e_n, m_n, s_n, batch.F), value=value.reshape(e_n, m_n, s_n),
+                    length=length.reshape(e_n, m_n, s_n), batch=batch)
 
-    mu = np.zeros((e_n, m_n, s_n, f_n))
-    length = np.zeros((e_n, m_n, s_n), dtype=np.int64)
-    first = np.full((horizon, e_n, m_n, s_n), -1, dtype=np.int8)
-    feasible = np.ones((e_n, m_n, s_n), dtype=bool)  # a trajectory of this length exists
-    for k in range(1, horizon + 1):
-        cand = feats + mu[e_idx, m_idx, nxt_b]  # [E, M, S, A, F]
-        val = cand @ w
-        ok = tied & feasible[e_idx, m_idx, nxt_b]
-        val = np.where(ok, val, -np.inf)
-        a_best = np.argmax(val, axis=-1)  # first arg-max in action order
-        has = ok.any(axis=-1)
-        new_mu = np.take_along_axis(cand, a_best[..., None, None], axis=3)[..., 0, :]
-        new_len = 1 + np.take_along_axis(length[e_idx, m_idx, nxt_b], a_best[..., None],
-                                         axis=3)[..., 0]
-        real = batch.valid[:, None, :]
-        mu = np.where((has & real)[..., None], new_mu, 0.0)
-        length = np.where(has & real, new_len, 0)
-        first[k - 1] = np.where(has & real, a_best, -1)
-        feasible = has | ~real  # the sink (and padding) always "end" fine
-    value = np.where(feasible | ~batch.valid[:, None, :], mu @ w, -np.inf)
-    return BestTied(first_action=first, mu=mu, value=value, length=length, batch=batch)
+
+def best_tied_mu(
+    batch: MDPBatch,
+    env: np.ndarray,
+    Q: np.ndarray,
+    w_true: np.ndarray,
+    *,
+    horizon: int = MAX_STEPS,
+    tol: float = TIE_TOL,
+    reference_limit: int | None = None,
+) -> np.ndarray:
+    """Integer feature counts ``[P, S, F]`` of the best tied trajectory from every state, for
+    P (instance, model) pairs: instance ``env[p]`` with action values ``Q[p]`` (``[P, S, A]``).
+
+    The same DP as `best_tied_trajectories`, on just the pairs given (e.g. the bounded ones).
+    `reference_limit` (the reference's 10): where more tied trajectories than that start at a
+    state, choose among the first ``limit + 1`` in depth-first order only, like the reference.
+    """
+    env = np.asarray(env, dtype=np.int64).reshape(-1)
+    Q = np.asarray(Q, dtype=float)
+    if Q.shape != (len(env), batch.S, batch.A):
+        raise ValueError(f"Q must have shape [P={len(env)}, S={batch.S}, A={batch.A}], "
+                         f"got {Q.shape}")
+    w = _check_w(batch, w_true, horizon)
+    if not len(env):
+        return np.zeros((0, batch.S, batch.F), dtype=np.int64)
+    pairs = _Pairs(batch, env, tied_actions(Q, tol))
+    mu = pairs.best(w, horizon, record_first=False)[0]
+    if reference_limit is not None:
+        fix = pairs.reference_firsts(w, horizon, reference_limit)
+        if fix is not None:
+            mu[fix[0]] = fix[1]
+    return np.rint(mu).astype(np.int64).reshape(len(env), batch.S, batch.F)
 
 
 def count_tied_trajectories(
@@ -146,15 +272,6 @@ def count_tied_trajectories(
     if tied.ndim != 4 or tied.shape[0] != batch.E or tied.shape[2:] != (batch.S, batch.A):
         raise ValueError(f"tied must have shape [E={batch.E}, M, S={batch.S}, A={batch.A}], "
                          f"got {tied.shape}")
-    e_n, m_n, s_n, _ = tied.shape
-    e_idx = np.arange(e_n)[:, None, None, None]
-    m_idx = np.arange(m_n)[None, :, None, None]
-    nxt_b = batch.next_state[:, None]
-    real = batch.valid[:, None, :]
-    mask = tied & real[..., None]
-    count = np.ones((e_n, m_n, s_n), dtype=np.int64)
-    for _ in range(horizon):
-        nxt_count = count[e_idx, m_idx, nxt_b]
-        total = np.where(mask, nxt_count, 0).sum(axis=-1)
-        count = np.where(real, np.minimum(total, cap), 1)
-    return count
+    e_n, m_n, s_n, a_n = tied.shape
+    pairs = _Pairs(batch, np.repeat(np.arange(e_n), m_n), tied.reshape(e_n * m_n, s_n, a_n))
+    return pairs.path_counts(horizon, cap)[horizon].reshape(e_n, m_n, s_n)

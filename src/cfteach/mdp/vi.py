@@ -8,7 +8,11 @@ cycle of positive total reward and the values diverge. Two methods:
   This flag is wrong for cheap no-op weights (a bounded fixed point that takes > 1000 sweeps
   to reach from 0), which the reference silently treats as unbounded. Pairs with a proven
   positive cycle are not swept (the reference's sweeps could never settle): they get
-  ``bounded = False``, ``sweeps = 1000`` and, unlike the reference, ``V = +inf``.
+  ``bounded = False``, ``sweeps = 1000`` and, unlike the reference, ``V = +inf``. With
+  ``skip_unstable=True`` also pairs proven unable to stabilise within 1000 sweeps (cheap
+  no-ops, see `_cannot_stabilise`) are not swept: ``bounded = False``, ``sweeps = 1000`` and
+  V = their true (exact) values instead of the reference's 1000th sweep. Callers that only
+  use the bounded pairs (the counterfactual constraints) save most of the sweeping.
   We use synchronous (Jacobi) sweeps, the reference Gauss-Seidel ones in set order; the fixed
   point is the same, the sweep count can differ only in borderline cases.
 * ``"exact"`` (default): Bellman-Ford longest paths to the terminal. V starts at -inf on real
@@ -95,6 +99,7 @@ def value_iteration(
     method: str = "exact",
     env: int | Sequence[int] | np.ndarray | None = None,
     chunk_bytes: float = 200e6,
+    skip_unstable: bool = False,
 ) -> Values:
     """Solve every (instance, weight vector) pair at once.
 
@@ -104,6 +109,8 @@ def value_iteration(
         method: ``"exact"`` (true gamma = 1 answer) or ``"reference"`` (spec §3).
         env: optional instance indices to solve (default: all of the batch).
         chunk_bytes: working-memory budget per chunk of pairs.
+        skip_unstable: reference only: do not sweep pairs proven unable to stabilise
+            (see the module docstring); their flags and sweep counts are unchanged.
     """
     if method not in ("exact", "reference"):
         raise ValueError(f"method must be 'exact' or 'reference', got {method!r}")
@@ -139,6 +146,10 @@ def value_iteration(
                 # the other pairs need the (up to 1000) reference sweeps.
                 ok = np.flatnonzero(bnd)
                 sw[:] = REFERENCE_MAX_SWEEPS
+                if skip_unstable and ok.size:
+                    stuck = _cannot_stabilise(R[ok], nxt[ok], valid[ok], v[ok])
+                    bnd[ok[stuck]] = False
+                    ok = ok[~stuck]
                 if ok.size:
                     v[ok], bnd[ok], sw[ok] = _solve_reference(R[ok], nxt[ok])
             q = R + _gather(v, nxt)
@@ -184,6 +195,27 @@ def _solve_reference(R: np.ndarray, nxt: np.ndarray) -> tuple[np.ndarray, ...]:
         V[act] = Va
     bounded = sweeps < REFERENCE_MAX_SWEEPS
     return V, bounded, sweeps
+
+
+def _cannot_stabilise(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
+                      v_exact: np.ndarray) -> np.ndarray:
+    """Pairs the reference cannot stabilise within 1000 sweeps, proven without sweeping.
+
+    From V0 = 0, after k sweeps V_k(s) >= k * (best self-loop reward at s). If every reward
+    is negative, every cycle is, so the only fixed point is the true V*; a state with
+    V*(s) < 999 * (best self-loop reward) is therefore still above V* at sweep 999, and the
+    sweeps cannot have stopped earlier. (Cheap no-ops make exactly these pairs, spec §3.)
+    R, nxt: ``[P, A, S]``; valid, v_exact: ``[P, S]``.
+    """
+    s_n = R.shape[2]
+    loop = nxt == np.arange(s_n)[None, None, :]
+    r_loop = np.where(loop, R, -np.inf).max(axis=1)  # [P, S]
+    all_neg = np.all(np.where(valid[:, None, :], R < 0, True), axis=(1, 2))
+    bound = (REFERENCE_MAX_SWEEPS - 1) * r_loop
+    margin = 1e-6 * (1.0 + np.abs(v_exact))
+    with np.errstate(invalid="ignore"):
+        stuck = valid & np.isfinite(r_loop) & (v_exact < bound - margin)
+    return all_neg & stuck.any(axis=1)
 
 
 def _solve_exact(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
