@@ -83,44 +83,62 @@ class _Pairs:
         self.tied = (tied & batch.valid[env][..., None]).reshape(self.n, self.A)
         self.flat_nxt = (batch.next_state[env]
                          + (np.arange(self.P) * self.S)[:, None, None]).reshape(self.n, self.A)
-        phi = batch.features[env]  # [P, S, A, F] float, integer-valued
-        self.phi = phi.reshape(self.n, self.A, self.F)
-        self.phi_f = [np.ascontiguousarray(phi[..., f]).reshape(self.n, self.A)
-                      for f in range(self.F)]
+        self._env = env
+        self._batch = batch
+        feats = batch.features  # [E, S, A, F] float, integer-valued
+        self.phi_f = [feats[..., f][env].reshape(self.n, self.A) for f in range(self.F)]
+
+    @property
+    def phi(self) -> np.ndarray:
+        """``[n, A, F]`` features (only the reference unranking needs this layout)."""
+        return self._batch.features[self._env].reshape(self.n, self.A, self.F)
 
     def best(self, w: np.ndarray, horizon: int, record_first: bool,
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """The max-plus DP: (mu [n, F] float, length [n], feasible [n], first [H, n] | None).
 
         Per-feature arrays instead of a trailing F axis keep every gather contiguous.
+        Lengths and first actions are tracked only when `record_first`; feasibility only
+        when some real state has no tied action (otherwise every state stays feasible).
         """
         n, f_n = self.n, self.F
         mu = [np.zeros(n) for _ in range(f_n)]
         length = np.zeros(n, dtype=np.int64)
         feasible = np.ones(n, dtype=bool)  # a trajectory of the current length exists
+        track_feasible = not np.all(self.tied.any(axis=-1) | ~self.real)
         first = np.full((horizon, n), -1, dtype=np.int8) if record_first else None
         row = np.arange(n) * self.A
         flat = self.flat_nxt
+        flat1 = flat.reshape(-1)
+        neg = np.where(self.tied, 0.0, -np.inf)
+        take = self.real
         for k in range(horizon):
-            ok = self.tied & feasible[flat]
+            if track_feasible:
+                ok = self.tied & feasible[flat]
+                neg = np.where(ok, 0.0, -np.inf)
+                take = ok.any(axis=-1) & self.real
             cand = [self.phi_f[f] + mu[f][flat] for f in range(f_n)]  # [n, A] each
-            val = np.where(ok, 0.0, -np.inf)
+            val = neg.copy()
             for f in range(f_n):
                 val += w[f] * cand[f]
             a = np.argmax(val, axis=-1)  # first arg-max in action order
-            take = ok.any(axis=-1) & self.real
             pick = row + a
             new_mu = [np.where(take, cand[f].reshape(-1)[pick], 0.0) for f in range(f_n)]
-            new_len = np.where(take, 1 + length[flat.reshape(-1)[pick]], 0)
-            new_feas = take | ~self.real  # the sink (and padding) always "end" fine
+            same = all(np.array_equal(x, y) for x, y in zip(new_mu, mu, strict=True))
+            if track_feasible:
+                new_feas = take | ~self.real  # the sink (and padding) always "end" fine
+                same = same and np.array_equal(new_feas, feasible)
+                feasible = new_feas
             if first is not None:
                 first[k] = np.where(take, a, -1)
-            if (np.array_equal(new_len, length) and np.array_equal(new_feas, feasible)
-                    and all(np.array_equal(x, y) for x, y in zip(new_mu, mu, strict=True))):
-                if first is not None:  # a fixed point: longer horizons choose the same
+                new_len = np.where(take, 1 + length[flat1[pick]], 0)
+                same = same and np.array_equal(new_len, length)
+                length = new_len
+            mu = new_mu
+            if same:  # a fixed point: longer horizons choose the same trajectories
+                if first is not None:
                     first[k + 1:] = first[k]
                 break
-            mu, length, feasible = new_mu, new_len, new_feas
         return np.stack(mu, axis=-1), length, feasible, first
 
     def path_counts(self, horizon: int, cap: int) -> np.ndarray:
