@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from cfteach.bec.rows import RowSet
-from cfteach.geometry import Region
+from cfteach.geometry import Region, intersection_areas
 
 
 def cone_generators(region: Region) -> np.ndarray | None:
@@ -65,25 +65,18 @@ def intersected_areas(region: Region, rowset: RowSet, demos: np.ndarray | None =
                       ) -> tuple[np.ndarray, np.ndarray]:
     """``(area(region & rows(d)) [n], has_rows [n])`` for the demos asked (default all).
 
-    Equal cutting-row sets share one area computation.
+    Only the rows that cut the region count; `geometry.intersection_areas` measures them
+    (each distinct set once, against ``region.reduced()`` as it is: no integer cast, so
+    non-integral regions are measured right too).
     """
     ids = np.arange(rowset.n_demos) if demos is None else np.asarray(demos, dtype=np.int64)
-    base = region.area()
     gens = cone_generators(region)
     cut = rowset.select(cutting(rowset.rows, gens))
-    counts = cut.counts()
     has = rowset.counts()[ids] > 0
-    out = np.full(len(ids), base)
-    base_rows = region.reduced().astype(np.int64) if region.integral else region.reduced()
-    memo: dict[bytes, float] = {}
-    for i in np.flatnonzero(counts[ids] > 0).tolist():
-        d = int(ids[i])
-        rows = cut.of(d)
-        key = rows.tobytes()
-        a = memo.get(key)
-        if a is None:
-            a = memo[key] = Region(np.vstack([base_rows, rows]), dim=rowset.F).area()
-        out[i] = a
+    out = np.full(len(ids), region.area())
+    todo = np.flatnonzero(cut.counts()[ids] > 0)
+    if len(todo):  # geometry dedupes equal sets and batches the small ones
+        out[todo] = intersection_areas(region, [cut.of(int(d)) for d in ids[todo]])
     return out, has
 
 

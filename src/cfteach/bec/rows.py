@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cfteach.geometry import Region
+from cfteach.geometry import reduce_many
 
 
 def primitive(rows: np.ndarray) -> np.ndarray:
@@ -110,41 +110,21 @@ def group_rows(rows: np.ndarray, demo: np.ndarray, n_demos: int) -> RowSet:
     return _from_sorted(np.ascontiguousarray(rows), demo, n_demos)
 
 
-def reduce_sets(rowset: RowSet, demos: np.ndarray | None = None) -> dict[int, np.ndarray]:
-    """Irredundant constraints of each demo's row set (deduplicated by content).
-
-    Returns ``{demo: reduced rows [k, F] int64}``; a demo without rows maps to ``(0, F)``.
-    """
-    ids = np.arange(rowset.n_demos) if demos is None else np.asarray(demos, dtype=np.int64)
-    memo: dict[bytes, np.ndarray] = {}
-    out: dict[int, np.ndarray] = {}
-    empty = np.zeros((0, rowset.F), dtype=np.int64)
-    for d in ids.tolist():
-        rows = rowset.of(d)
-        if not len(rows):
-            out[d] = empty
-            continue
-        k = rows.tobytes()
-        hit = memo.get(k)
-        if hit is None:
-            hit = memo[k] = Region(rows).reduced().astype(np.int64)
-        out[d] = hit
-    return out
-
-
 def reduce_and_measure(rowset: RowSet, demos: np.ndarray | None = None,
                        ) -> tuple[dict[int, np.ndarray], np.ndarray]:
-    """`reduce_sets` plus each demo's area (4 pi for no rows), deduplicated by content."""
+    """Irredundant constraints and area of each demo's row set (`geometry.reduce_many`,
+    which solves each distinct set once).
+
+    Returns ``({demo: reduced rows [k, F] int64}, areas [n])``; a demo without rows maps to
+    ``(0, F)`` and the whole sphere's area. Rows of a RowSet are integers, so the reduced
+    rows are exact integers too.
+    """
     ids = np.arange(rowset.n_demos) if demos is None else np.asarray(demos, dtype=np.int64)
-    memo: dict[bytes, tuple[np.ndarray, float]] = {}
-    out: dict[int, np.ndarray] = {}
-    areas = np.empty(len(ids))
-    for i, d in enumerate(ids.tolist()):
-        rows = rowset.of(d)
-        k = rows.tobytes()
-        hit = memo.get(k)
-        if hit is None:
-            r = Region(rows, dim=rowset.F)
-            hit = memo[k] = (r.reduced().astype(np.int64), r.area())
-        out[d], areas[i] = hit
-    return out, areas
+    ids = ids.tolist()
+    reduced, areas = reduce_many([rowset.of(d) for d in ids], dim=rowset.F)
+    return dict(zip(ids, reduced, strict=True)), areas
+
+
+def reduce_sets(rowset: RowSet, demos: np.ndarray | None = None) -> dict[int, np.ndarray]:
+    """`reduce_and_measure` without the areas: ``{demo: reduced rows [k, F] int64}``."""
+    return reduce_and_measure(rowset, demos)[0]
