@@ -85,6 +85,10 @@ _DELETE = object()
     ("consumables[0].name", "passenger", "consumables[0].name", "already used"),
     ("domain.actions", ["up", "up"], "domain.actions", "twice"),
     ("domain.discount", 0.9, "domain.discount", "only 1.0"),
+    ("teaching.max_demos", 0, "teaching.max_demos", "must be at least 1"),
+    ("teaching.max_demos", "5", "teaching.max_demos", "must be an integer"),
+    ("teaching.max_demo", 5, "teaching.max_demo", "unknown key"),
+    ("teaching", 5, "teaching", "must be a table"),
 ])
 def test_malformed_dict_errors(path: str, value: object, key: str, problem: str) -> None:
     with pytest.raises(DomainFileError) as exc:
@@ -129,3 +133,11 @@ def test_file_error_names_file(tmp_path: Path) -> None:
 def test_unknown_name_or_missing_path() -> None:
     with pytest.raises(ValueError, match="neither a built-in domain"):
         load("no_such_domain")
+
+
+def test_teaching_max_demos_from_file_or_default() -> None:
+    # the study's n_train_demos per built-in domain
+    assert [load(n).max_demos for n in ("delivery", "tiles", "skateboard")] == [5, 5, 7]
+    data = _mutate("teaching", _DELETE)
+    assert from_dict(data).max_demos == 5
+    assert from_dict(_mutate("teaching.max_demos", 3)).max_demos == 3

@@ -59,6 +59,11 @@ class Domain:
         )
 
     @property
+    def max_demos(self) -> int:
+        """Demonstrations per curriculum (``[teaching] max_demos``, default 5)."""
+        return self.spec.max_demos
+
+    @property
     def n_features(self) -> int:
         return len(self.feature_names)
 

@@ -20,6 +20,9 @@ INTERACT: tuple[str, ...] = ("pickup", "dropoff")
 
 Cell = tuple[int, int]
 
+#: Demonstrations per curriculum when a domain file has no ``[teaching] max_demos``.
+DEFAULT_MAX_DEMOS = 5
+
 
 class DomainFileError(ValueError):
     """A domain file (or dict) is malformed; the message names file, key path and problem."""
@@ -91,10 +94,11 @@ class DomainSpec:
     features: tuple[FeatureSpec, ...]
     prior: tuple[tuple[int, ...], ...]
     posterior: tuple[tuple[int, ...], ...]
+    max_demos: int = DEFAULT_MAX_DEMOS  # [teaching] max_demos: demonstrations per curriculum
 
 
 _TOP_KEYS = {"domain", "cells", "agent", "cargo", "consumables", "goal", "variants", "features",
-             "beliefs"}
+             "beliefs", "teaching"}
 _DOMAIN_KEYS = {"name", "title", "description", "reference_name", "width", "height", "discount",
                 "actions", "walls"}
 _COND_KEYS = {"action", "moved", "carrying", "from_cells", "leaves_cells", "consumes"}
@@ -340,12 +344,17 @@ def parse_spec(data: Any, source: str = "<dict>") -> DomainSpec:
     prior = _constraints(c, b.get("prior", []), "beliefs.prior", len(features))
     posterior = _constraints(c, b.get("posterior", []), "beliefs.posterior", len(features))
 
+    t = c.table(top.get("teaching", {}), "teaching", {"max_demos"})
+    max_demos = c.integer(t.get("max_demos", DEFAULT_MAX_DEMOS), "teaching.max_demos",
+                          minimum=1)
+
     return DomainSpec(
         source=source, name=name, title=title, description=description,
         reference_name=reference_name, width=width, height=height, discount=discount,
         actions=actions, walls=walls, cells=tuple(cell_sets.items()), agent_start=agent_start,
         cargo=cargo, consumables=tuple(consumables), goal_kind=goal_kind, goal=goal,
         variants=tuple(variants), features=tuple(features), prior=prior, posterior=posterior,
+        max_demos=max_demos,
     )
 
 

@@ -12,11 +12,6 @@ from cfteach.bec.rows import reduce_sets
 
 CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
 
-#: Demonstrations per condition in the study (spec §8); other domains default to 5.
-#: (Domain files have no field for this yet.)
-MAX_DEMOS = {"delivery": 5, "tiles": 5, "skateboard": 7}
-DEFAULT_MAX_DEMOS = 5
-
 #: The paper's footnote: counterfactual_only used 70% of the best gain in these domains.
 REFERENCE_PROPORTION = {("counterfactual_only", "delivery"): 0.7,
                         ("counterfactual_only", "skateboard"): 0.7}
@@ -29,7 +24,8 @@ def check_condition(condition: str) -> str:
 
 
 def default_max_demos(ds: DemoSet) -> int:
-    return MAX_DEMOS.get(ds.domain.name, DEFAULT_MAX_DEMOS)
+    """The domain file's ``[teaching] max_demos`` (the study's 5 / 5 / 7; default 5)."""
+    return ds.domain.max_demos
 
 
 def default_proportion(profile: str, condition: str, domain_name: str) -> float:
