@@ -257,3 +257,17 @@ def test_default_profile_conditions_reach_the_bec(name: str) -> None:
     for c in CONDITIONS:
         cur = teach(name, c, profile="default", seed=0)
         assert cur.final_belief.area() == pytest.approx(bec_area(name), rel=1e-9), c
+
+
+def test_every_curriculum_writes_all_settings(skate_ref) -> None:  # noqa: ANN001
+    """docs/schemas.md: the same settings keys in every curriculum, null where unused."""
+    for c in CONDITIONS:
+        s = skate_ref[c].to_json()["settings"]
+        assert set(s) == {"human_models", "max_demos", "proportion", "unbounded_models"}, c
+        assert s["max_demos"] == 7  # skateboard's [teaching] max_demos
+        if c in ("baseline", "feature_only"):
+            assert s["human_models"] is None and s["proportion"] is None, c
+            assert s["unbounded_models"] is None
+        else:
+            assert s["human_models"] == 8 and s["unbounded_models"] == "skip", c
+    assert skate_ref["counterfactual_only"].to_json()["settings"]["proportion"] == 0.7

@@ -94,7 +94,7 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
             from cfteach.teaching.baseline import baseline_curriculum
 
             for key in ("proportion", "human_models", "unbounded_models"):
-                settings.pop(key)
+                settings[key] = None  # written in every curriculum, null where unused
             records, final, log = baseline_curriculum(
                 ds, feature_scaffolding=condition == "feature_only", max_demos=k, seed=seed)
     finally:
