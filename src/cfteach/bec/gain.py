@@ -75,8 +75,13 @@ def intersected_areas(region: Region, rowset: RowSet, demos: np.ndarray | None =
     has = rowset.counts()[ids] > 0
     out = np.full(len(ids), region.area())
     todo = np.flatnonzero(cut.counts()[ids] > 0)
-    if len(todo):  # geometry dedupes equal sets and batches the small ones
-        out[todo] = intersection_areas(region, [cut.of(int(d)) for d in ids[todo]])
+    if len(todo):  # each distinct cutting set once; geometry batches the small ones
+        first: dict[bytes, int] = {}
+        slot = np.array([first.setdefault(cut.key(int(d)), len(first)) for d in ids[todo]])
+        distinct = {v: k for k, v in first.items()}
+        sets = [np.frombuffer(distinct[i], dtype=np.int64).reshape(-1, rowset.F)
+                for i in range(len(first))]
+        out[todo] = intersection_areas(region, sets)[slot]
     return out, has
 
 

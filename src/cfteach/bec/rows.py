@@ -121,8 +121,14 @@ def reduce_and_measure(rowset: RowSet, demos: np.ndarray | None = None,
     """
     ids = np.arange(rowset.n_demos) if demos is None else np.asarray(demos, dtype=np.int64)
     ids = ids.tolist()
-    reduced, areas = reduce_many([rowset.of(d) for d in ids], dim=rowset.F)
-    return dict(zip(ids, reduced, strict=True)), areas
+    first: dict[bytes, int] = {}  # many demos share a set: hand reduce_many each once
+    slot = [first.setdefault(rowset.key(d), len(first)) for d in ids]
+    distinct = {v: k for k, v in first.items()}
+    sets = [np.frombuffer(distinct[i], dtype=np.int64).reshape(-1, rowset.F)
+            for i in range(len(first))]
+    reduced, areas = reduce_many(sets, dim=rowset.F)
+    return ({d: reduced[i] for d, i in zip(ids, slot, strict=True)},
+            areas[np.asarray(slot, dtype=np.int64)] if slot else np.zeros(0))
 
 
 def reduce_sets(rowset: RowSet, demos: np.ndarray | None = None) -> dict[int, np.ndarray]:
