@@ -99,11 +99,25 @@ def bench_many(rng: np.random.Generator) -> None:
           f"empty {int(np.sum(areas == 0))}")
 
 
+def bench_reference_grid() -> None:
+    """The reference's grid sampler: dominated by testing 10^6 coarse-grid points."""
+    from cfteach.geometry import sample_reference_grid
+
+    sample_reference_grid([[0, 0, -1]], 8)  # builds the cached coarse grid
+    cases = {"prior [[0, 0, -1]]": [[0, 0, -1]],
+             "delivery's BEC (3 rows)": [[1, 1, 0], [0, -1, -4], [-1, 0, 2]]}
+    print("\nsample_reference_grid(m=8), coarse grid cached")
+    for label, rows in cases.items():
+        t = time_per_call(lambda r: sample_reference_grid(r, 8), [rows] * 5)
+        print(f"  {label:<26} {t * 1e3:8.1f} ms per call")
+
+
 def main() -> None:
     rng = np.random.default_rng(0)
     Region(np.eye(3)).area()  # warm imports
     bench_sizes(rng)
     bench_many(rng)
+    bench_reference_grid()
 
 
 if __name__ == "__main__":
