@@ -64,7 +64,8 @@ def register(app: typer.Typer) -> None:
         human_models: Annotated[int, typer.Option(
             "--human-models", "-m", help="Human models sampled per round.")] = 8,
         max_demos: Annotated[int | None, typer.Option(
-            help="Most demonstrations to show (default: the study's 5/5/7, else 5).")] = None,
+            help="Most demonstrations to show (default: the domain file's [teaching] "
+                 "max_demos; the study's 5/5/7, else 5).")] = None,
         proportion: Annotated[float | None, typer.Option(
             help="Pick the gain closest to this share of the best, in (0, 1] (default: "
                  "1; the reference profile uses 0.7 for counterfactual_only in delivery "
