@@ -231,12 +231,20 @@ class Executor:
                     f"cannot reach the Dask scheduler at {self.config.scheduler!r}: {err}"
                 ) from err
         else:
+            import dask
             import joblib
 
             n = self.config.n_workers or max(1, joblib.cpu_count())
-            self._cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                         dashboard_address=None,
-                                         silence_logs=logging.ERROR)
+            # The workers' statistical profiler samples every thread's stack every 10 ms,
+            # and Dask's default MALLOC_TRIM_THRESHOLD_ turns off glibc's adaptive mmap
+            # threshold, so every large numpy temporary is a fresh mmap with page faults:
+            # for long numpy chunks both are pure overhead.
+            with dask.config.set({"distributed.worker.profile.enabled": False,
+                                  "distributed.nanny.pre-spawn-environ."
+                                  "MALLOC_TRIM_THRESHOLD_": None}):
+                self._cluster = LocalCluster(n_workers=n, threads_per_worker=1,
+                                             processes=True, dashboard_address=None,
+                                             silence_logs=logging.ERROR)
             self._client = Client(self._cluster)
         return self._client
 
