@@ -262,6 +262,15 @@ def test_greedy_first_argmax_and_ties() -> None:
     assert tied_actions(Q2).all()
 
 
+def _pair_layout(b, W: np.ndarray) -> tuple[np.ndarray, ...]:  # noqa: ANN001
+    """R, nxt ``[P, A, S]`` and valid ``[P, S]`` per (instance, model) pair, built directly."""
+    R = np.einsum("esaf,mf->emas", b.features, W).reshape(-1, b.A, b.S)
+    nxt = np.broadcast_to(b.next_state[:, None].transpose(0, 1, 3, 2),
+                          (b.E, len(W), b.A, b.S)).reshape(-1, b.A, b.S)
+    valid = np.broadcast_to(b.valid[:, None], (b.E, len(W), b.S)).reshape(-1, b.S)
+    return R, nxt, valid
+
+
 def test_reference_shortcut_matches_full_reference_sweeps() -> None:
     """Skipping proven-divergent pairs does not change the reference's flags or values."""
     from cfteach.mdp.vi import _solve_reference
@@ -272,9 +281,7 @@ def test_reference_shortcut_matches_full_reference_sweeps() -> None:
     W = rng.normal(size=(10, 3))
     W[:5, 2] = -np.abs(W[:5, 2])
     vals = value_iteration(b, W, method="reference")
-    R = np.einsum("esaf,mf->emas", b.features, W).reshape(-1, b.A, b.S)
-    nxt = np.broadcast_to(b.next_state[:, None].transpose(0, 1, 3, 2),
-                          (b.E, len(W), b.A, b.S)).reshape(-1, b.A, b.S)
+    R, nxt, _ = _pair_layout(b, W)
     v, bnd, sw = _solve_reference(R, nxt)
     assert np.array_equal(vals.bounded.ravel(), bnd)
     assert np.array_equal(vals.sweeps.ravel(), sw)
@@ -297,10 +304,7 @@ def test_skip_unstable_keeps_reference_flags_and_sweeps() -> None:
     assert np.array_equal(full.sweeps, fast.sweeps)
     np.testing.assert_array_equal(fast.V[fast.bounded], full.V[full.bounded])
     exact = value_iteration(b, W, method="exact")
-    R = np.einsum("esaf,mf->emas", b.features, W).reshape(-1, b.A, b.S)
-    nxt = np.broadcast_to(b.next_state[:, None].transpose(0, 1, 3, 2),
-                          (b.E, len(W), b.A, b.S)).reshape(-1, b.A, b.S)
-    valid = np.broadcast_to(b.valid[:, None], (b.E, len(W), b.S)).reshape(-1, b.S)
+    R, nxt, valid = _pair_layout(b, W)
     stuck = _cannot_stabilise(R, nxt, valid, exact.V.reshape(-1, b.S)).reshape(b.E, len(W))
     assert stuck.any() and exact.bounded[stuck].all()  # the shortcut is exercised
     assert not full.bounded[stuck].any() and (full.sweeps[stuck] == 1000).all()

@@ -76,11 +76,7 @@ def intersected_areas(region: Region, rowset: RowSet, demos: np.ndarray | None =
     out = np.full(len(ids), region.area())
     todo = np.flatnonzero(cut.counts()[ids] > 0)
     if len(todo):  # each distinct cutting set once; geometry batches the small ones
-        first: dict[bytes, int] = {}
-        slot = np.array([first.setdefault(cut.key(int(d)), len(first)) for d in ids[todo]])
-        distinct = {v: k for k, v in first.items()}
-        sets = [np.frombuffer(distinct[i], dtype=np.int64).reshape(-1, rowset.F)
-                for i in range(len(first))]
+        sets, slot = cut.distinct(ids[todo])
         out[todo] = intersection_areas(region, sets)[slot]
     return out, has
 

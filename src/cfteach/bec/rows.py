@@ -55,6 +55,15 @@ class RowSet:
         """A content key of demo d's row set (equal sets give equal keys)."""
         return self.of(d).tobytes()
 
+    def distinct(self, demos: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+        """``(sets, slot)``: the distinct row sets of `demos`, and for each demo the index of
+        its set (many demos share one, so set-level work is done once per set)."""
+        first: dict[bytes, int] = {}
+        slot = np.array([first.setdefault(self.key(int(d)), len(first)) for d in demos],
+                        dtype=np.int64)
+        sets = [np.frombuffer(k, dtype=np.int64).reshape(-1, self.F) for k in first]
+        return sets, slot
+
     def select(self, mask: np.ndarray) -> RowSet:
         """Keep only the rows where `mask` (``[R]``) is true."""
         return _from_sorted(self.rows[mask], self.demo[mask], self.n_demos)
@@ -120,15 +129,10 @@ def reduce_and_measure(rowset: RowSet, demos: np.ndarray | None = None,
     rows are exact integers too.
     """
     ids = np.arange(rowset.n_demos) if demos is None else np.asarray(demos, dtype=np.int64)
-    ids = ids.tolist()
-    first: dict[bytes, int] = {}  # many demos share a set: hand reduce_many each once
-    slot = [first.setdefault(rowset.key(d), len(first)) for d in ids]
-    distinct = {v: k for k, v in first.items()}
-    sets = [np.frombuffer(distinct[i], dtype=np.int64).reshape(-1, rowset.F)
-            for i in range(len(first))]
+    sets, slot = rowset.distinct(ids)
     reduced, areas = reduce_many(sets, dim=rowset.F)
-    return ({d: reduced[i] for d, i in zip(ids, slot, strict=True)},
-            areas[np.asarray(slot, dtype=np.int64)] if slot else np.zeros(0))
+    return ({d: reduced[i] for d, i in zip(ids.tolist(), slot.tolist(), strict=True)},
+            areas[slot] if len(slot) else np.zeros(0))
 
 
 def reduce_sets(rowset: RowSet, demos: np.ndarray | None = None) -> dict[int, np.ndarray]:
