@@ -14,6 +14,7 @@ from sqlalchemy import update
 import test_study_support
 from cfteach.domains import load
 from cfteach.mdp import compile_instances, value_iteration
+from cfteach.mdp.scoring import is_optimal
 from cfteach.study.assignment import all_cells, cell_counts
 from cfteach.study.config import load_study
 from cfteach.study.db import make_engine, upgrade
@@ -21,7 +22,6 @@ from cfteach.study.games import (
     ScoringError,
     best_path,
     build_game,
-    is_optimal,
     optimal_value,
     replay,
     shortest_path,

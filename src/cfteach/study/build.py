@@ -15,7 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .games import best_path, build_game, is_optimal, optimal_value, public_game, replay
+from cfteach.mdp.scoring import is_optimal
+
+from .games import best_path, build_game, optimal_value, public_game, replay
 from .layout import instance_layout
 from .practice import (
     ACTIONS,

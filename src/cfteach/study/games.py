@@ -7,7 +7,6 @@ own `Instance.step`. Feature vectors stay on the server: the page never sees rew
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from dataclasses import dataclass
 from typing import Any
@@ -117,11 +116,6 @@ def optimal_value(game: dict, weights: list[float], *, max_sweeps: int = 10_000)
     """
     nxt, rew, term = _arrays(game, weights)
     return float(_values(nxt, rew, term, max_sweeps)[0])
-
-
-def is_optimal(reward: float, optimal_reward: float, tol: float = 1e-9) -> bool:
-    """The paper's M1: the participant's reward equals the optimum (within float tolerance)."""
-    return math.isclose(reward, optimal_reward, rel_tol=tol, abs_tol=tol)
 
 
 def _plain(obj: Any) -> Any:

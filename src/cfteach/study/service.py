@@ -15,10 +15,12 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session as DBSession
 from sqlalchemy.orm import sessionmaker
 
+from cfteach.mdp.scoring import is_optimal
+
 from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell
 from .build import browser_game
-from .games import ScoringError, is_optimal, replay
+from .games import ScoringError, replay
 from .models import Event, Session, TestResponse, utcnow
 from .steps import ALLOWED, build_steps
 from .texts import EDUCATION, GENDERS, LIKERT
