@@ -96,3 +96,11 @@ def test_random_gridworld_loads_as_a_domain_with_reachable_goal() -> None:
         for kind, cells in v["add_cells"].items():
             assert {tuple(c) for c in cells} <= set(last.cells(kind))
     assert dom.instances()[0].cells("kind1") == frozenset()
+
+
+def test_generator_is_reachable_from_the_domains_package() -> None:
+    import cfteach.domains as domains
+
+    dom = domains.random_gridworld(4, 4, 3, 4, seed=0)
+    assert "random_gridworld" in domains.__all__
+    assert dom.feature_names[-1] == "step" and len(dom.instances()) == 4

@@ -60,3 +60,9 @@ def load(path_or_name: str | Path) -> Domain:
 def from_dict(data: dict[str, Any], source: str = "<dict>") -> Domain:
     """Build a domain from a dict with the TOML file's structure (same validation)."""
     return Domain.from_spec(parse_spec(data, source=source))
+
+
+# Imported last: the generator builds its domains through `from_dict` above.
+from cfteach.domains.random import random_gridworld, random_gridworld_dict  # noqa: E402
+
+__all__ += ["random_gridworld", "random_gridworld_dict"]
