@@ -115,13 +115,14 @@ def test_curricula_follow_the_schema(out):
         data = json.loads((out / "skateboard" / f"{cond}.json").read_text())
         check_common(data, "cfteach.curriculum/1")
         assert data["condition"] == cond
-        # schemas.md lists human_models, max_demos, proportion; the baselines use no human
-        # models and no proportion, so only the counterfactual conditions must record them
-        needed = ["max_demos"] + (
-            ["human_models", "proportion"] if "counter" in cond or cond == "proposed" else []
-        )
-        for key in needed:
-            assert key in data["settings"], (cond, key)
+        # schemas.md: every curriculum records these; null where its condition uses none
+        settings = data["settings"]
+        for key in ("human_models", "max_demos", "proportion"):
+            assert key in settings, (cond, key)
+        assert isinstance(settings["max_demos"], int), cond
+        uses_models = cond in ("counterfactual_only", "proposed")
+        assert (settings["human_models"] is not None) == uses_models, cond
+        assert (settings["proportion"] is not None) == uses_models, cond
         check_constraints(data["prior"], "prior")
         assert isinstance(data["demos"], list) and data["demos"], cond
         for k, d in enumerate(data["demos"]):
