@@ -271,3 +271,13 @@ def test_every_curriculum_writes_all_settings(skate_ref) -> None:  # noqa: ANN00
         else:
             assert s["human_models"] == 8 and s["unbounded_models"] == "skip", c
     assert skate_ref["counterfactual_only"].to_json()["settings"]["proportion"] == 0.7
+
+
+def test_fewer_than_five_overlap_clusters_keep_the_extremes() -> None:
+    from cfteach.teaching.testsel import level_clusters
+
+    assert level_clusters(5) == {"high": 0, "medium": 2, "low": 4}
+    assert level_clusters(4) == {"high": 0, "medium": 2, "low": 3}
+    assert level_clusters(3) == {"high": 0, "medium": 1, "low": 2}
+    assert level_clusters(2) == {"high": 0, "medium": None, "low": 1}
+    assert level_clusters(1) == {"high": None, "medium": None, "low": 0}

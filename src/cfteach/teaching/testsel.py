@@ -27,6 +27,19 @@ from cfteach.teaching.sampling import sample_models
 N_CLUSTERS = 5
 LEVEL_CLUSTER = {"high": 0, "medium": 2, "low": 4}
 
+
+def level_clusters(k: int) -> dict[str, int | None]:
+    """Which sorted cluster each level takes when only `k` clusters exist.
+
+    With the paper's 5 clusters: the 1st, 3rd and 5th. A domain whose candidates have fewer
+    than 5 distinct overlaps keeps the extremes (smallest overlap = high, largest = low)
+    and the middle cluster for medium when there is one, instead of leaving `low` empty.
+    """
+    if k >= N_CLUSTERS:
+        return dict(LEVEL_CLUSTER)
+    return {"high": 0 if k > 1 else None, "medium": k // 2 if k >= 3 else None,
+            "low": k - 1}
+
 #: At most this many tied-optimal action sequences are listed per test.
 ALL_OPTIMAL_CAP = 50
 
@@ -122,8 +135,8 @@ def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
     clusters[pool] = rank[km.labels_]
     rng = np.random.default_rng([seed, 4])
     tests: dict[str, list[TestRecord]] = {}
-    for level, c in LEVEL_CLUSTER.items():
-        members = pool[clusters[pool] == c] if c < k else np.zeros(0, dtype=np.int64)
+    for level, c in level_clusters(k).items():
+        members = pool[clusters[pool] == c] if c is not None else np.zeros(0, dtype=np.int64)
         pick = rng.choice(members, size=min(per_level, len(members)), replace=False) \
             if len(members) else members
         red = reduce_sets(joint, pick)
