@@ -67,7 +67,6 @@ def rollout_features(
         raise ValueError(f"max_steps must be at least 1, got {max_steps}")
     e_n, m_n, s_n = policy.shape
     a_n, f_n = batch.A, batch.F
-    sink = batch.sink
     if first_action is None:
         extra: tuple[int, ...] = ()
         forced = None
@@ -84,10 +83,65 @@ def rollout_features(
     n = int(np.prod(shape))
     grid = np.indices(shape).reshape(len(shape), n)
     e, m, cur = grid[0], grid[1], grid[2].copy()
-    pol = policy.reshape(e_n * m_n, s_n)
-    em = e * m_n + m
-    nxt_tab, feat_tab = batch.next_state, batch.features
+    out = _roll(batch, policy.reshape(e_n * m_n, s_n), e, e * m_n + m, cur,
+                None if forced is None else forced.reshape(n), max_steps, max_self_loops,
+                return_paths)
+    return _shaped(out, shape, f_n, max_steps)
 
+
+def rollout_from(
+    batch: MDPBatch,
+    policy: np.ndarray,
+    env: int,
+    starts: np.ndarray,
+    first_action: np.ndarray | None = None,
+    max_steps: int = MAX_STEPS,
+    *,
+    max_self_loops: int | None = MAX_SELF_LOOPS,
+) -> Rollouts:
+    """Rollouts of M policies ``policy[M, S]`` in ONE instance `env`, from chosen start
+    states ``starts[M, K]`` (or ``[K]`` for every policy), optionally forcing
+    ``first_action[M, K]``. Same rules as `rollout_features` (shapes ``[M, K]``), plus:
+    a negative policy entry ends the rollout there (not terminal), and
+    ``max_self_loops=None`` turns the self-loop counter off."""
+    policy = np.asarray(policy)
+    if policy.ndim != 2 or policy.shape[1] != batch.S:
+        raise ValueError(f"policy must have shape [M, S={batch.S}], got {policy.shape}")
+    if not 0 <= int(env) < batch.E:
+        raise ValueError(f"env must be an instance index 0..{batch.E - 1}, got {env}")
+    if max_steps < 1:
+        raise ValueError(f"max_steps must be at least 1, got {max_steps}")
+    m_n = policy.shape[0]
+    starts = np.asarray(starts, dtype=np.int64)
+    if starts.ndim == 1:
+        starts = np.broadcast_to(starts, (m_n, starts.size))
+    if starts.ndim != 2 or starts.shape[0] != m_n:
+        raise ValueError(f"starts must have shape [M={m_n}, K] or [K], got {starts.shape}")
+    if starts.size and (starts.min() < 0 or starts.max() >= batch.S):
+        raise ValueError(f"start state indices must lie in 0..{batch.S - 1}")
+    shape = starts.shape
+    n = starts.size
+    forced = None
+    if first_action is not None:
+        forced = np.broadcast_to(np.asarray(first_action, dtype=np.int64), shape).reshape(n)
+        if n and (forced.min() < 0 or forced.max() >= batch.A):
+            raise ValueError(f"first actions must lie in 0..{batch.A - 1}")
+    e = np.full(n, int(env), dtype=np.int64)
+    em = np.repeat(np.arange(m_n), shape[1])
+    out = _roll(batch, policy, e, em, starts.reshape(n).copy(), forced, max_steps,
+                max_self_loops, False)
+    return _shaped(out, shape, batch.F, max_steps)
+
+
+def _roll(batch: MDPBatch, pol: np.ndarray, e: np.ndarray, em: np.ndarray, cur: np.ndarray,
+          forced: np.ndarray | None, max_steps: int, max_self_loops: int | None,
+          return_paths: bool) -> tuple:
+    """The rollout loop on n flat rollouts: instance ``e[n]``, policy row ``em[n]`` of
+    ``pol[rows, S]``, start ``cur[n]`` (updated in place), forced first action ``forced[n]``.
+    Returns ``(mu [n, F], length [n], terminal [n], states | None, actions | None)``."""
+    n, f_n, sink = len(cur), batch.F, batch.sink
+    nxt_tab, feat_tab = batch.next_state, batch.features
+    stops = bool(pol.size) and pol.min() < 0  # negative entries end a rollout
     mu = np.zeros((n, f_n))
     length = np.zeros(n, dtype=np.int64)
     loops = np.zeros(n, dtype=np.int64)
@@ -112,14 +166,26 @@ def rollout_features(
 
     ids = np.flatnonzero(alive)
     if forced is not None:
-        take(ids, forced.reshape(n)[ids], count_loops=False)
+        take(ids, forced[ids], count_loops=False)
     while True:
-        ids = ids[(cur[ids] != sink) & (length[ids] < max_steps) & (loops[ids] <= max_self_loops)]
+        keep = (cur[ids] != sink) & (length[ids] < max_steps)
+        if max_self_loops is not None:
+            keep &= loops[ids] <= max_self_loops
+        ids = ids[keep]
         if not ids.size:
             break
-        take(ids, pol[em[ids], cur[ids]], count_loops=True)
+        act = pol[em[ids], cur[ids]]
+        if stops:
+            go = act >= 0
+            ids, act = ids[go], act[go]
+            if not ids.size:
+                break
+        take(ids, act, count_loops=max_self_loops is not None)
+    return mu, length, cur == sink, paths_s, paths_a
 
-    terminal = cur == sink
+
+def _shaped(out: tuple, shape: tuple[int, ...], f_n: int, max_steps: int) -> Rollouts:
+    mu, length, terminal, paths_s, paths_a = out
     return Rollouts(
         mu=mu.reshape(*shape, f_n), length=length.reshape(shape),
         terminal=terminal.reshape(shape),

@@ -93,19 +93,22 @@ class _Pairs:
         """``[n, A, F]`` features (only the reference unranking needs this layout)."""
         return self._batch.features[self._env].reshape(self.n, self.A, self.F)
 
-    def best(self, w: np.ndarray, horizon: int, record_first: bool,
+    def best(self, w: np.ndarray, horizon: int, record_first: bool, must_finish: bool = False,
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """The max-plus DP: (mu [n, F] float, length [n], feasible [n], first [H, n] | None).
 
         Per-feature arrays instead of a trailing F axis keep every gather contiguous.
         Lengths and first actions are tracked only when `record_first`; feasibility only
         when some real state has no tied action (otherwise every state stays feasible).
+        With `must_finish`, only trajectories that reach the terminal sink count: at horizon
+        0 only the sink (and padding) is feasible, so feasibility is always tracked.
         """
         n, f_n = self.n, self.F
         mu = [np.zeros(n) for _ in range(f_n)]
         length = np.zeros(n, dtype=np.int64)
-        feasible = np.ones(n, dtype=bool)  # a trajectory of the current length exists
-        track_feasible = not np.all(self.tied.any(axis=-1) | ~self.real)
+        # feasible: a trajectory of the current length (that ends at the sink) exists
+        feasible = ~self.real if must_finish else np.ones(n, dtype=bool)
+        track_feasible = must_finish or not np.all(self.tied.any(axis=-1) | ~self.real)
         first = np.full((horizon, n), -1, dtype=np.int8) if record_first else None
         row = np.arange(n) * self.A
         flat = self.flat_nxt
@@ -271,6 +274,39 @@ def best_tied_mu(
         if fix is not None:
             mu[fix[0]] = fix[1]
     return np.rint(mu).astype(np.int64).reshape(len(env), batch.S, batch.F)
+
+
+def best_tied_policy(
+    batch: MDPBatch,
+    env: np.ndarray,
+    Q: np.ndarray,
+    w_true: np.ndarray,
+    *,
+    horizon: int = MAX_STEPS,
+    tol: float = TIE_TOL,
+    must_finish: bool = False,
+) -> np.ndarray:
+    """First actions ``[P, S]`` of the best tied trajectories with `horizon` steps left, for P
+    (instance, model) pairs (as in `best_tied_mu`); -1 at the sink, padding, and where no
+    tied trajectory (with `must_finish`: none that reaches the terminal within
+    ``horizon - 1`` further steps) exists.
+
+    Used as a stationary policy it is the simulated learners' counterfactual plan
+    (`cfteach.simulate`): follow it with `rollout_from`; a rollout that reaches the terminal
+    took tied actions only, so it exists within the horizon. Past the DP's fixed point the
+    policy no longer depends on `horizon`.
+    """
+    env = np.asarray(env, dtype=np.int64).reshape(-1)
+    Q = np.asarray(Q, dtype=float)
+    if Q.shape != (len(env), batch.S, batch.A):
+        raise ValueError(f"Q must have shape [P={len(env)}, S={batch.S}, A={batch.A}], "
+                         f"got {Q.shape}")
+    w = _check_w(batch, w_true, horizon)
+    if not len(env):
+        return np.zeros((0, batch.S), dtype=np.int64)
+    pairs = _Pairs(batch, env, tied_actions(Q, tol))
+    first = pairs.best(w, horizon, record_first=True, must_finish=must_finish)[3]
+    return first[horizon - 1].astype(np.int64).reshape(len(env), batch.S)
 
 
 def count_tied_trajectories(
