@@ -189,3 +189,19 @@ def test_rollout_from_matches_rollout_features_on_a_domain() -> None:
     np.testing.assert_array_equal(ro.mu.reshape(2, n, b.A, b.F), full.mu[env, :, :n])
     np.testing.assert_array_equal(ro.terminal.reshape(2, n, b.A), full.terminal[env, :, :n])
     np.testing.assert_array_equal(ro.length.reshape(2, n, b.A), full.length[env, :, :n])
+
+
+@pytest.mark.parametrize("horizon", [3, 25])
+def test_best_tied_policy_is_the_grid_dps_first_action(horizon: int) -> None:
+    """Without must_finish, the policy equals `best_tied_trajectories`' first actions with the
+    full horizon left (the same DP recording every horizon)."""
+    from cfteach.mdp import best_tied_trajectories
+
+    d = load("skateboard")
+    b = compile_domain(d)
+    W = np.array([[0.0, 0.0, -1.0], [-0.3, -0.3, -0.9]])
+    vals = value_iteration(b, W)
+    grid = best_tied_trajectories(b, vals.Q, d.weights, horizon=horizon)
+    env = np.repeat(np.arange(b.E), 2)
+    pol = best_tied_policy(b, env, vals.Q.reshape(-1, b.S, b.A), d.weights, horizon=horizon)
+    np.testing.assert_array_equal(pol.reshape(b.E, 2, b.S), grid.first_action[horizon - 1])

@@ -93,7 +93,8 @@ class _Pairs:
         """``[n, A, F]`` features (only the reference unranking needs this layout)."""
         return self._batch.features[self._env].reshape(self.n, self.A, self.F)
 
-    def best(self, w: np.ndarray, horizon: int, record_first: bool, must_finish: bool = False,
+    def best(self, w: np.ndarray, horizon: int, record_first: bool | str,
+             must_finish: bool = False,
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """The max-plus DP: (mu [n, F] float, length [n], feasible [n], first [H, n] | None).
 
@@ -102,7 +103,13 @@ class _Pairs:
         when some real state has no tied action (otherwise every state stays feasible).
         With `must_finish`, only trajectories that reach the terminal sink count: at horizon
         0 only the sink (and padding) is feasible, so feasibility is always tracked.
+        ``record_first="last"`` keeps only the first actions with the full horizon left
+        (``first`` is then ``[1, n]``) and does not track lengths.
         """
+        last = record_first == "last"
+        if last:
+            record_first = False
+            first_last = np.full(self.n, -1, dtype=np.int8)
         n, f_n = self.n, self.F
         mu = [np.zeros(n) for _ in range(f_n)]
         length = np.zeros(n, dtype=np.int64)
@@ -132,6 +139,8 @@ class _Pairs:
                 new_feas = take | ~self.real  # the sink (and padding) always "end" fine
                 same = same and np.array_equal(new_feas, feasible)
                 feasible = new_feas
+            if last:
+                first_last = np.where(take, a, -1).astype(np.int8)
             if first is not None:
                 first[k] = np.where(take, a, -1)
                 new_len = np.where(take, 1 + length[flat1[pick]], 0)
@@ -142,6 +151,8 @@ class _Pairs:
                 if first is not None:
                     first[k + 1:] = first[k]
                 break
+        if last:
+            first = first_last[None]
         return np.stack(mu, axis=-1), length, feasible, first
 
     def path_counts(self, horizon: int, cap: int) -> np.ndarray:
@@ -305,8 +316,8 @@ def best_tied_policy(
     if not len(env):
         return np.zeros((0, batch.S), dtype=np.int64)
     pairs = _Pairs(batch, env, tied_actions(Q, tol))
-    first = pairs.best(w, horizon, record_first=True, must_finish=must_finish)[3]
-    return first[horizon - 1].astype(np.int64).reshape(len(env), batch.S)
+    first = pairs.best(w, horizon, record_first="last", must_finish=must_finish)[3]
+    return first[0].astype(np.int64).reshape(len(env), batch.S)
 
 
 def count_tied_trajectories(
