@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from cfteach.simulate.planning import best_finishing_tied, boltzmann_rollouts, follow
+from cfteach.simulate.planning import boltzmann_rollouts
 from cfteach.simulate.scoring import score_answers
 
 #: What a learner does with a weight sample that has no finite plan (module docstring).
@@ -303,30 +303,35 @@ class Learners:
         return added
 
     def _one_step_constraints(self, rep: Replay) -> np.ndarray:
-        q = self._optimal_q(rep.env)
-        policy = np.argmax(q, axis=-1)[None]
-        nxt, feats = self.batch.next_state[rep.env], self.batch.features[rep.env]
+        from cfteach.mdp import greedy_actions, rollout_from
+
+        policy = greedy_actions(self._optimal_q(rep.env))[None]
         T, A = len(rep.actions), self.batch.A
         starts = np.repeat(rep.states[:T], A)[None]
         first = np.tile(np.arange(A), T)[None]
-        mu, fin, _ = follow(nxt, feats, policy, starts, first_action=first,
-                            max_steps=self.batch.S + 1)
-        mu, fin = mu[0].reshape(T, A, -1), fin[0].reshape(T, A)
+        ro = rollout_from(self.batch, policy, rep.env, starts, first,
+                          max_steps=self.batch.S + 1, max_self_loops=None)
+        mu, fin = ro.mu[0].reshape(T, A, -1), ro.terminal[0].reshape(T, A)
         keep = fin & (np.arange(A)[None] != rep.actions[:, None])
         rows = (rep.mu_suffix[:, None] - mu)[keep]
         return _as_constraints(rows)
 
     def _counterfactual_constraints(self, rep: Replay) -> list[np.ndarray]:
-        from cfteach.mdp import tied_actions
+        from cfteach.mdp import best_tied_policy, rollout_from
 
         m = self.model.human_models
         W, q, bounded = self._plan_samples(rep.env, m, self.model.unbounded == "resample")
-        tied = tied_actions(q)
         T = len(rep.actions) if self.model.all_suffixes else 1
         starts = rep.states[:T]
-        nxt, feats = self.batch.next_state[rep.env], self.batch.features[rep.env]
-        mu_h, found = best_finishing_tied(nxt, feats, tied, self.w_true, starts)
-        found &= bounded[:, None]
+        # The benefit-of-the-doubt plan among tied trajectories that reach the end within S
+        # steps: the DP's first actions with S steps of continuation, followed as a
+        # stationary policy; a rollout that ends took tied actions only (cfteach.mdp).
+        S = self.batch.S
+        policy = best_tied_policy(self.batch, np.full(len(q), rep.env), q, self.w_true,
+                                  horizon=S + 1, must_finish=True)
+        ro = rollout_from(self.batch, policy, rep.env, starts, max_steps=S,
+                          max_self_loops=None)
+        mu_h, found = ro.mu, ro.terminal & bounded[:, None]
         diffs = rep.mu_suffix[None, :T] - mu_h                 # [N*m, T, F]
         loops: dict[int, np.ndarray] = {}
         if self.model.unbounded == "loops" and not bounded.all():
@@ -370,7 +375,7 @@ class Learners:
     def answer(self, tests: Sequence[dict[str, Any]]) -> dict[str, np.ndarray]:
         """Every learner plays every test. Returns `reward`, `finished`, `correct` (all
         `[n, len(tests)]`) and `optimal_reward` `[len(tests)]`."""
-        from cfteach.mdp import greedy_actions
+        from cfteach.mdp import greedy_actions, rollout_from
 
         T = len(tests)
         reward = np.zeros((self.n, T))
@@ -397,7 +402,9 @@ class Learners:
                 mu, fin, _ = boltzmann_rollouts(nxt, feats, q, st, self.model.temperature,
                                                 self.rng, max_steps=max_steps)
             else:
-                mu, fin, _ = follow(nxt, feats, greedy_actions(q), st, max_steps=max_steps)
+                ro = rollout_from(self.batch, greedy_actions(q), env, st, max_steps=max_steps,
+                                  max_self_loops=None)
+                mu, fin = ro.mu, ro.terminal
             fin &= bounded[:, None]
             reward[:, js] = mu @ self.w_true
             finished[:, js] = fin
