@@ -109,7 +109,6 @@ class _Pairs:
         last = record_first == "last"
         if last:
             record_first = False
-            first_last = np.full(self.n, -1, dtype=np.int8)
         n, f_n = self.n, self.F
         mu = [np.zeros(n) for _ in range(f_n)]
         length = np.zeros(n, dtype=np.int64)
@@ -122,15 +121,20 @@ class _Pairs:
         flat1 = flat.reshape(-1)
         neg = np.where(self.tied, 0.0, -np.inf)
         take = self.real
+        tmp = np.empty((n, self.A))
         for k in range(horizon):
             if track_feasible:
-                ok = self.tied & feasible[flat]
-                neg = np.where(ok, 0.0, -np.inf)
+                ok = self.tied & np.take(feasible, flat)
+                val = np.where(ok, 0.0, -np.inf)  # fresh each step: no copy needed
                 take = ok.any(axis=-1) & self.real
-            cand = [self.phi_f[f] + mu[f][flat] for f in range(f_n)]  # [n, A] each
-            val = neg.copy()
+            else:
+                val = neg.copy()
+            cand = []  # [n, A] each: phi + mu(next), in place (same values, fewer temporaries)
             for f in range(f_n):
-                val += w[f] * cand[f]
+                c = np.take(mu[f], flat)
+                c += self.phi_f[f]
+                cand.append(c)
+                val += np.multiply(w[f], c, out=tmp)
             a = np.argmax(val, axis=-1)  # first arg-max in action order
             pick = row + a
             new_mu = [np.where(take, cand[f].reshape(-1)[pick], 0.0) for f in range(f_n)]
@@ -139,8 +143,6 @@ class _Pairs:
                 new_feas = take | ~self.real  # the sink (and padding) always "end" fine
                 same = same and np.array_equal(new_feas, feasible)
                 feasible = new_feas
-            if last:
-                first_last = np.where(take, a, -1).astype(np.int8)
             if first is not None:
                 first[k] = np.where(take, a, -1)
                 new_len = np.where(take, 1 + length[flat1[pick]], 0)
@@ -151,8 +153,8 @@ class _Pairs:
                 if first is not None:
                     first[k + 1:] = first[k]
                 break
-        if last:
-            first = first_last[None]
+        if last:  # the first actions of the final step (or of the fixed point)
+            first = np.where(take, a, -1).astype(np.int8)[None]
         return np.stack(mu, axis=-1), length, feasible, first
 
     def path_counts(self, horizon: int, cap: int) -> np.ndarray:

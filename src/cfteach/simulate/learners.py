@@ -326,9 +326,12 @@ class Learners:
         # The benefit-of-the-doubt plan among tied trajectories that reach the end within S
         # steps: the DP's first actions with S steps of continuation, followed as a
         # stationary policy; a rollout that ends took tied actions only (cfteach.mdp).
+        # Only bounded samples can yield a counterfactual: plan for those alone (-1 = none).
         S = self.batch.S
-        policy = best_tied_policy(self.batch, np.full(len(q), rep.env), q, self.w_true,
-                                  horizon=S + 1, must_finish=True)
+        policy = np.full((len(q), S), -1, dtype=np.int64)
+        policy[bounded] = best_tied_policy(self.batch, np.full(int(bounded.sum()), rep.env),
+                                           q[bounded], self.w_true, horizon=S + 1,
+                                           must_finish=True)
         ro = rollout_from(self.batch, policy, rep.env, starts, max_steps=S,
                           max_self_loops=None)
         mu_h, found = ro.mu, ro.terminal & bounded[:, None]
