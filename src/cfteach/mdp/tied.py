@@ -121,20 +121,15 @@ class _Pairs:
         flat1 = flat.reshape(-1)
         neg = np.where(self.tied, 0.0, -np.inf)
         take = self.real
-        tmp = np.empty((n, self.A))
         for k in range(horizon):
             if track_feasible:
-                ok = self.tied & np.take(feasible, flat)
-                val = np.where(ok, 0.0, -np.inf)  # fresh each step: no copy needed
+                ok = self.tied & feasible[flat]
+                neg = np.where(ok, 0.0, -np.inf)
                 take = ok.any(axis=-1) & self.real
-            else:
-                val = neg.copy()
-            cand = []  # [n, A] each: phi + mu(next), in place (same values, fewer temporaries)
+            cand = [self.phi_f[f] + mu[f][flat] for f in range(f_n)]  # [n, A] each
+            val = neg.copy()
             for f in range(f_n):
-                c = np.take(mu[f], flat)
-                c += self.phi_f[f]
-                cand.append(c)
-                val += np.multiply(w[f], c, out=tmp)
+                val += w[f] * cand[f]
             a = np.argmax(val, axis=-1)  # first arg-max in action order
             pick = row + a
             new_mu = [np.where(take, cand[f].reshape(-1)[pick], 0.0) for f in range(f_n)]
