@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import re
 import shlex
 from pathlib import Path
 
@@ -11,13 +10,14 @@ import pytest
 from typer.testing import CliRunner
 
 from cfteach.cli import app
+from doc_examples import code_blocks
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "analysis.md"
 EXAMPLE = DOC.parent / "examples" / "analysis-synthetic-216"
 
 
 def _blocks(lang: str) -> list[str]:
-    return re.findall(rf"```{lang}\n(.*?)```", DOC.read_text(encoding="utf-8"), flags=re.S)
+    return code_blocks("analysis.md", lang)
 
 
 @pytest.mark.slow

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import re
-from pathlib import Path
-
 import pytest
 
-DOCS = Path(__file__).resolve().parents[1] / "docs" / "domains.md"
-BLOCKS = re.findall(r"```python\n(.*?)```", DOCS.read_text(), re.S)
+from doc_examples import DOCS, code_blocks
+
+BLOCKS = code_blocks("domains.md")
 
 
 def test_docs_have_examples() -> None:
@@ -17,7 +15,7 @@ def test_docs_have_examples() -> None:
 
 @pytest.mark.parametrize("i", range(len(BLOCKS)))
 def test_docs_example_runs(i: int, capsys: pytest.CaptureFixture[str]) -> None:
-    exec(compile(BLOCKS[i], f"{DOCS}:block{i}", "exec"), {})
+    exec(compile(BLOCKS[i], f"{DOCS / 'domains.md'}:block{i}", "exec"), {})
     out = capsys.readouterr().out
     if i == 0:
         assert "191" in out and "'station': True" in out

@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import re
-from pathlib import Path
-
-DOC = Path(__file__).resolve().parents[1] / "docs" / "geometry.md"
+from doc_examples import DOCS, code_blocks
 
 
 def test_doc_examples_run() -> None:
-    blocks = re.findall(r"```python\n(.*?)```", DOC.read_text(), flags=re.S)
+    blocks = code_blocks("geometry.md")
     assert len(blocks) >= 3
     for block in blocks:
-        exec(compile(block, str(DOC), "exec"), {})
+        exec(compile(block, str(DOCS / "geometry.md"), "exec"), {})

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import pytest
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "rendering.md"
-BLOCKS = re.findall(r"```python\n(.*?)```", DOC.read_text(encoding="utf-8"), re.S)
+from doc_examples import DOCS, code_blocks
+
+DOC = DOCS / "rendering.md"
+BLOCKS = code_blocks("rendering.md")
 
 
 def test_the_doc_has_examples():

@@ -2,21 +2,14 @@
 
 from __future__ import annotations
 
-import re
-import subprocess
-import sys
 from pathlib import Path
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "simulate.md"
+from doc_examples import code_blocks, run_script
 
 
 def test_doc_examples_run(tmp_path: Path) -> None:
-    blocks = re.findall(r"```python\n(.*?)```", DOC.read_text(), re.S)
+    blocks = code_blocks("simulate.md")
     assert len(blocks) >= 2
-    script = tmp_path / "example.py"
-    script.write_text("\n".join(blocks))
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                          timeout=300)
-    assert done.returncode == 0, done.stderr
+    done = run_script("\n".join(blocks), tmp_path)
     untaught, taught = (float(x) for x in done.stdout.split()[:2])
     assert 0 <= untaught <= 1 and 0 <= taught <= 1

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import re
 import subprocess
 import sys
 from pathlib import Path
@@ -11,18 +10,13 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from cfteach.cli import app
-
-DOC = Path(__file__).resolve().parents[1] / "docs" / "study.md"
+from doc_examples import code_blocks, run_script
 
 
 def test_doc_example_runs(tmp_path: Path) -> None:
-    blocks = re.findall(r"```python\n(.*?)```", DOC.read_text(), re.S)
+    blocks = code_blocks("study.md")
     assert blocks
-    script = tmp_path / "example.py"
-    script.write_text("\n".join(blocks))
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                          timeout=300)
-    assert done.returncode == 0, done.stderr
+    done = run_script("\n".join(blocks), tmp_path)
     assert "cc=C1A2B3C4" in done.stdout
 
 
