@@ -250,6 +250,17 @@ def best_tied_trajectories(
                     length=length.reshape(e_n, m_n, s_n), batch=batch)
 
 
+def _pair_inputs(batch: MDPBatch, env: np.ndarray, Q: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Validate the (instance, model) pairs `env[P]` and their action values `Q[P, S, A]`."""
+    env = np.asarray(env, dtype=np.int64).reshape(-1)
+    Q = np.asarray(Q, dtype=float)
+    if Q.shape != (len(env), batch.S, batch.A):
+        raise ValueError(f"Q must have shape [P={len(env)}, S={batch.S}, A={batch.A}], "
+                         f"got {Q.shape}")
+    return env, Q
+
+
 def best_tied_mu(
     batch: MDPBatch,
     env: np.ndarray,
@@ -267,11 +278,7 @@ def best_tied_mu(
     `reference_limit` (the reference's 10): where more tied trajectories than that start at a
     state, choose among the first ``limit + 1`` in depth-first order only, like the reference.
     """
-    env = np.asarray(env, dtype=np.int64).reshape(-1)
-    Q = np.asarray(Q, dtype=float)
-    if Q.shape != (len(env), batch.S, batch.A):
-        raise ValueError(f"Q must have shape [P={len(env)}, S={batch.S}, A={batch.A}], "
-                         f"got {Q.shape}")
+    env, Q = _pair_inputs(batch, env, Q)
     w = _check_w(batch, w_true, horizon)
     if not len(env):
         return np.zeros((0, batch.S, batch.F), dtype=np.int64)
@@ -304,11 +311,7 @@ def best_tied_policy(
     took tied actions only, so it exists within the horizon. Past the DP's fixed point the
     policy no longer depends on `horizon`.
     """
-    env = np.asarray(env, dtype=np.int64).reshape(-1)
-    Q = np.asarray(Q, dtype=float)
-    if Q.shape != (len(env), batch.S, batch.A):
-        raise ValueError(f"Q must have shape [P={len(env)}, S={batch.S}, A={batch.A}], "
-                         f"got {Q.shape}")
+    env, Q = _pair_inputs(batch, env, Q)
     w = _check_w(batch, w_true, horizon)
     if not len(env):
         return np.zeros((0, batch.S), dtype=np.int64)
