@@ -23,25 +23,22 @@ def _attrs(shape: Shape) -> str:
     return out
 
 
+def _stroke(shape: Rect | Circle) -> str:
+    """The optional outline of a rectangle or circle (none without a stroke colour)."""
+    if not shape.stroke:
+        return ""
+    return f' stroke="{shape.stroke}" stroke-width="{_num(shape.stroke_width)}"'
+
+
 def _element(shape: Shape) -> str:
     if isinstance(shape, Rect):
-        fill = shape.fill or "none"
-        stroke = (
-            f' stroke="{shape.stroke}" stroke-width="{_num(shape.stroke_width)}"'
-            if shape.stroke
-            else ""
-        )
+        fill, stroke = shape.fill or "none", _stroke(shape)
         return (
             f'<rect x="{_num(shape.x)}" y="{_num(shape.y)}" width="{_num(shape.w)}" '
             f'height="{_num(shape.h)}" fill="{fill}"{stroke}{_attrs(shape)}/>'
         )
     if isinstance(shape, Circle):
-        fill = shape.fill or "none"
-        stroke = (
-            f' stroke="{shape.stroke}" stroke-width="{_num(shape.stroke_width)}"'
-            if shape.stroke
-            else ""
-        )
+        fill, stroke = shape.fill or "none", _stroke(shape)
         return (
             f'<circle cx="{_num(shape.cx)}" cy="{_num(shape.cy)}" r="{_num(shape.r)}" '
             f'fill="{fill}"{stroke}{_attrs(shape)}/>'
