@@ -82,8 +82,7 @@ class GridEnv(gymnasium.Env):
         if int(max_steps) < 1:
             raise ValueError(f"max_steps must be at least 1, got {max_steps}")
         self.domain = _resolve_domain(domain)
-        n_bits = len(self.domain.instances()[0].env_code)
-        self.instance = self.domain.instance(_env_key(env_code, n_bits))
+        self.instance = self.domain.instance(_env_key(env_code, self.domain.n_bits))
         self.render_mode = render_mode
         self.max_steps = int(max_steps)
         self.cell_px = int(cell_px)

@@ -56,7 +56,7 @@ def state_cmd(
 
     try:
         dom = domains.load(domain)
-        n_bits = len(dom.instances()[0].env_code)
+        n_bits = dom.n_bits
         if len(env_code) == n_bits and set(env_code) <= {"0", "1"}:
             key: Any = tuple(int(c) for c in env_code)
         elif env_code.isdigit():
