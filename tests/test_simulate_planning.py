@@ -28,11 +28,10 @@ def test_boltzmann_cold_is_greedy_hot_is_uniform() -> None:
 
 def test_planning_example_in_docs_prints_what_it_says(capsys: pytest.CaptureFixture[str]) -> None:
     import re
-    from pathlib import Path
 
-    doc = (Path(__file__).resolve().parents[1] / "docs" / "simulate.md").read_text()
-    section = doc[doc.index("## How the learners plan"):]
-    block = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    from doc_examples import code_blocks
+
+    block = next(b for b in code_blocks("simulate.md") if "best_tied_policy(" in b)
     exec(compile(block, "simulate.md:how-the-learners-plan", "exec"), {})
     claimed = re.search(r"print\(.*\)\s+# (.*)", block).group(1).strip()
     assert capsys.readouterr().out.strip() == claimed
