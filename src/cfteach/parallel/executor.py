@@ -196,18 +196,16 @@ class Executor:
 
     def _map_local(self, fn, chunks, seeds, progress, desc):
         n_jobs = min(self.n_workers, len(chunks))
+        pairs = zip(chunks, seeds, strict=True)
         with _progress_bar(len(chunks), progress, desc) as bar:
             if n_jobs == 1:
-                out = []
-                for c, s in zip(chunks, seeds, strict=True):
-                    out.append(_call(fn, c, s))
-                    bar.update()
-                return out
-            from joblib import Parallel, delayed
+                gen = (_call(fn, c, s) for c, s in pairs)
+            else:
+                from joblib import Parallel, delayed
 
-            gen = Parallel(n_jobs=n_jobs, backend="loky", return_as="generator")(
-                delayed(_call)(fn, c, s) for c, s in zip(chunks, seeds, strict=True)
-            )
+                gen = Parallel(n_jobs=n_jobs, backend="loky", return_as="generator")(
+                    delayed(_call)(fn, c, s) for c, s in pairs
+                )
             out = []
             for r in gen:
                 out.append(r)
