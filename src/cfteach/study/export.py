@@ -11,7 +11,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import sessionmaker
 
 from .db import make_engine
-from .models import Event, Session, TestResponse
+from .models import Event, Session, TestResponse, aware
 
 COUNTERFACTUAL = {"counterfactual_only", "proposed"}
 FEATURE = {"feature_only", "proposed"}
@@ -78,9 +78,7 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
 def _iso(dt: datetime | None) -> str:
     if dt is None:
         return ""
-    if dt.tzinfo is None:
-        dt = dt.replace(tzinfo=UTC)
-    return dt.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    return aware(dt).astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def _b(x: bool) -> int:
@@ -103,9 +101,7 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
         by_pk = {s.id: s for s in sessions}
         for s in sessions:
             status = s.status
-            last = s.last_active_at if s.last_active_at.tzinfo else s.last_active_at.replace(
-                tzinfo=UTC)
-            idle = (now - last).total_seconds()
+            idle = (now - aware(s.last_active_at)).total_seconds()
             if status == "in_progress" and idle > abandon_after_minutes * 60:
                 status = "abandoned"
             rows["participants.csv"].append([

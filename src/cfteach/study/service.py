@@ -6,7 +6,7 @@ import random
 import re
 import secrets
 import threading
-from datetime import UTC, datetime
+from datetime import datetime
 from typing import Any
 
 from pydantic import ValidationError
@@ -21,7 +21,7 @@ from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell
 from .build import browser_game
 from .games import ScoringError, replay
-from .models import Event, Session, TestResponse, utcnow
+from .models import Event, Session, TestResponse, aware, utcnow
 from .steps import ALLOWED, build_steps
 from .texts import EDUCATION, GENDERS, LIKERT
 
@@ -165,7 +165,7 @@ class StudyService:
                         confidence=LIKERT["confidence"],
                         n_trials=len(s["tests"][step["domain"]][row.test_set]),
                         # so time_ms counts from the first showing, even across reloads
-                        elapsed_ms=max(0, int((utcnow() - _aware(row.step_entered_at))
+                        elapsed_ms=max(0, int((utcnow() - aware(row.step_entered_at))
                                               .total_seconds() * 1000)))
         elif kind == "feedback":
             n = db.scalar(select(func.count()).select_from(TestResponse).where(
@@ -290,7 +290,7 @@ class StudyService:
             score = replay(t["game"], self.study["domain_info"][dom]["weights"], p.actions)
         except ScoringError as e:
             raise ApiError(422, "bad_moves", str(e)) from e
-        entered = _aware(row.step_entered_at)
+        entered = aware(row.step_entered_at)
         db.add(TestResponse(
             session_pk=row.id, event_pk=ev.id, domain=dom, domain_position=step["position"],
             test_id=t["test_id"], difficulty=t["difficulty"], overlap=t["overlap"],
@@ -337,10 +337,6 @@ def _redirect(comp: dict, which: str, row: Session) -> str | None:
     if not comp.get("url") or row.is_preview:
         return None
     return f"{comp['url']}{comp[which]}"
-
-
-def _aware(dt: datetime) -> datetime:
-    return dt if dt.tzinfo else dt.replace(tzinfo=UTC)
 
 
 def _first_error(e: ValidationError) -> str:
