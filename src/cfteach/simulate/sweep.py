@@ -119,8 +119,8 @@ def teach_material(domains: list[str | tuple], conditions: list[str], seeds: lis
     chunks = [{"domain": d, "seed": s, "conditions": taught, "profile": profile,
                "human_models": human_models, "per_level": per_level,
                "include_candidates": include_candidates} for d in domains for s in seeds]
-    kwargs = {"executor": executor} if executor is not None else {}
-    return map_chunks(_teach_chunk, chunks, progress=progress, desc="teaching", **kwargs)
+    return map_chunks(_teach_chunk, chunks, progress=progress, desc="teaching",
+                      executor=executor)
 
 
 def load_material(source: str | Path, domains: list[str | tuple], conditions: list[str],
@@ -327,9 +327,8 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
                                                        b)})
                     meta.append((label, mat.seed, cond, model.name, sl, items))
     t0 = time.perf_counter()
-    kwargs = {"executor": executor} if executor is not None else {}
     results = map_chunks(_simulate_chunk, chunks, progress=progress, desc="simulating",
-                         **kwargs)
+                         executor=executor)
     elapsed = time.perf_counter() - t0
     frames, belief_rows = [], []
     for (label, mseed, cond, model, sl, items), res in zip(meta, results, strict=True):
