@@ -16,8 +16,8 @@ from cfteach.geometry import Region
 from cfteach.teaching import CONDITIONS, select_tests, teach
 from cfteach.teaching.common import masking_order
 from cfteach.teaching.counterfactual import candidate_set
-from cfteach.teaching.visual import reference_dissimilarity, tie_break
-from cfteach.teaching.visual_arrays import dissimilarity_matrix
+from cfteach.teaching.visual import default_dissimilarity, reference_dissimilarity, tie_break
+from cfteach.teaching.visual_arrays import dissimilarity_matrix, dissimilarity_pairs
 from test_geometry_human_models import PRIOR_SAMPLES as SPEC_MODELS  # spec §6.1's eight
 
 MASKS = {"delivery": ["hotswap", "toll", "step"], "tiles": ["B", "A", "step"],
@@ -139,6 +139,18 @@ def test_dissimilarity_arrays_match_scalar_and_tie_break() -> None:
                                       ds.instance(int(b[0])), ds.start_state(int(b[0])))
            for d in simplest}
     assert dis[pick] == min(dis.values())
+
+
+def test_dissimilarity_pairs_match_scalar() -> None:
+    for profile, scalar in [("reference", reference_dissimilarity),
+                            ("default", default_dissimilarity)]:
+        ds = demo_set(load("delivery"), profile)
+        rng = np.random.default_rng(2)
+        x, y = rng.choice(ds.D, 25), rng.choice(ds.D, 25)
+        got = dissimilarity_pairs(ds, x, y)
+        want = [scalar(ds.instance(p), ds.start_state(p), ds.instance(q), ds.start_state(q))
+                for p, q in zip(x.tolist(), y.tolist(), strict=True)]
+        assert got.tolist() == want
 
 
 def test_curriculum_json_is_consistent(skate_ref) -> None:  # noqa: ANN001

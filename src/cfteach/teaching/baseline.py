@@ -25,7 +25,11 @@ from cfteach.bec.demos import DemoSet
 from cfteach.bec.rows import reduce_and_measure
 from cfteach.geometry import Region
 from cfteach.teaching.common import DemoRecord, masking_order, nonzero_counts, one_step_sets
-from cfteach.teaching.visual_arrays import dissimilarity_matrix, visual_arrays
+from cfteach.teaching.visual_arrays import (
+    dissimilarity_matrix,
+    dissimilarity_pairs,
+    visual_arrays,
+)
 
 _SCOT_CHUNK = 1 << 20
 
@@ -110,8 +114,7 @@ def _scot3(ds: DemoSet, groups: list[np.ndarray]) -> list[int]:
         single = (trip[:, 0] == trip[:, 2])
         x = trip[:, 0]
         y = np.where(trip[:, 0] == trip[:, 1], trip[:, 2], trip[:, 1])
-        dxy = np.array([dissimilarity_matrix(ds, [p], [q])[0, 0] for p, q in zip(x, y,
-                                                                               strict=True)])
+        dxy = dissimilarity_pairs(ds, x, y)
         vis[i, j, k] = np.where(single, np.inf, dxy)
         cmx[i, j, k] = np.where(single, comp[x], (comp[x] + comp[y]) / 2)
     best = vis.min()

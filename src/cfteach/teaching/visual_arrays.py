@@ -53,15 +53,24 @@ def visual_arrays(ds: DemoSet) -> VisualArrays:
 
 def dissimilarity_matrix(ds: DemoSet, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``D[i, j]`` = dissimilarity(demo a[i], demo b[j]) in the DemoSet's profile."""
-    va = visual_arrays(ds)
     a = np.asarray(a, dtype=np.int64)
     b = np.asarray(b, dtype=np.int64)
-    ham = np.abs(va.env_code[a][:, None, :] - va.env_code[b][None, :, :]).sum(-1)
+    return _dissimilarity(ds, a[:, None], b[None, :])
+
+
+def dissimilarity_pairs(ds: DemoSet, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``D[i]`` = dissimilarity(demo a[i], demo b[i]) (element-wise, same length)."""
+    return _dissimilarity(ds, np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64))
+
+
+def _dissimilarity(ds: DemoSet, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """D(a, b) for broadcastable demo index arrays `a`, `b` (result has their shape)."""
+    va = visual_arrays(ds)
+    ham = np.abs(va.env_code[a] - va.env_code[b]).sum(-1)
     if ds.profile == "reference":
         L = va.hash.shape[1]
-        n = np.minimum(va.hash_len[a][:, None], va.hash_len[b][None, :])  # [A, B]
-        diff = np.abs(va.hash[a][:, None, :] - va.data[b][None, :, :L])  # [A, B, L]
-        diff = np.where(np.arange(L)[None, None, :] < n[..., None], diff, 0)
+        n = np.minimum(va.hash_len[a], va.hash_len[b])
+        diff = np.abs(va.hash[a] - va.data[b][..., :L])  # [..., L]
+        diff = np.where(np.arange(L) < n[..., None], diff, 0)
         return (2 * diff.sum(-1) + ham).astype(float)
-    return (np.abs(va.state[a][:, None, :] - va.state[b][None, :, :]).sum(-1) + ham
-            ).astype(float)
+    return (np.abs(va.state[a] - va.state[b]).sum(-1) + ham).astype(float)
