@@ -89,15 +89,7 @@ def aggregate_outliers(tests: pd.DataFrame, k: float) -> pd.DataFrame:
     mean, sd = float(prop.mean()), float(prop.std(ddof=1)) if len(prop) > 1 else float("nan")
     thr = mean - k * sd
     flagged = prop[prop < thr] if np.isfinite(thr) else prop.iloc[:0]
-    return pd.DataFrame(
-        {
-            "participant_id": flagged.index,
-            "value": flagged.to_numpy(),
-            "threshold": thr,
-            "mean": mean,
-            "sd": sd,
-        }
-    )
+    return _flagged(flagged, thr, mean, sd)
 
 
 def item_outliers(
@@ -127,6 +119,11 @@ def item_outliers(
     sd = float(pool.std(ddof=1)) if len(pool) > 1 else float("nan")
     thr = mean + k_count * sd
     flagged = counts[counts > thr] if np.isfinite(thr) else counts.iloc[:0]
+    return _flagged(flagged, thr, mean, sd)
+
+
+def _flagged(flagged: pd.Series, thr: float, mean: float, sd: float) -> pd.DataFrame:
+    """The flagged participants (index) with their values and the rule's statistics."""
     return pd.DataFrame(
         {
             "participant_id": flagged.index,
