@@ -10,11 +10,7 @@ from typing import Annotated
 
 import typer
 
-
-def _split(values: list[str] | None) -> list[str] | None:
-    if not values:
-        return None
-    return [v.strip() for item in values for v in item.split(",") if v.strip()]
+from cfteach.cli._lists import split_list
 
 
 def reproduce(
@@ -57,7 +53,8 @@ def reproduce(
         typer.echo(f"Report: {index}")
         return
     try:
-        results, index = run(out, _split(domains), profile=profile, seed=seed, report=not no_report)
+        results, index = run(out, split_list(domains), profile=profile, seed=seed,
+                             report=not no_report)
     except (ValueError, FileNotFoundError) as exc:
         typer.echo(f"Error: {exc}", err=True)
         raise typer.Exit(2) from exc

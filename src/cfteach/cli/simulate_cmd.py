@@ -6,12 +6,7 @@ from pathlib import Path
 
 import typer
 
-
-def _split(values: list[str] | None) -> list[str] | None:
-    """Accept both repeated options and comma-separated lists."""
-    if not values:
-        return None
-    return [v.strip() for item in values for v in item.split(",") if v.strip()]
+from cfteach.cli._lists import split_list
 
 
 def register(app: typer.Typer) -> None:
@@ -64,8 +59,8 @@ def register(app: typer.Typer) -> None:
 
         try:
             result = run_sweep(
-                _split(domains) or ["delivery", "tiles", "skateboard"],
-                _split(conditions), _split(learner), n_learners=learners, seeds=seeds,
+                split_list(domains) or ["delivery", "tiles", "skateboard"],
+                split_list(conditions), split_list(learner), n_learners=learners, seeds=seeds,
                 include_candidates=candidates, source=source, profile=profile,
                 human_models=human_models, seed=seed, backend=backend, n_workers=workers,
                 scheduler=scheduler, chunk_learners=chunk, progress=sys.stderr.isatty())
