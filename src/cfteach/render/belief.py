@@ -50,6 +50,28 @@ def inside(normals: np.ndarray, points: np.ndarray, tol: float = 0.0) -> np.ndar
     return np.all(points @ normals.T >= -tol, axis=-1)
 
 
+def _region_colors(nb: np.ndarray, ne: np.ndarray | None, points: np.ndarray,
+                   outside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """RGBA per point of `points[..., 3]`: belief green, BEC yellow, both olive, else
+    `outside`; also the mask of points inside the belief."""
+    in_b = inside(nb, points)
+    colors = np.broadcast_to(outside, points.shape[:-1] + (4,)).copy()
+    colors[in_b] = BELIEF_COLOR
+    if ne is not None:
+        in_e = inside(ne, points)
+        colors[in_e & ~in_b] = BEC_COLOR
+        colors[in_e & in_b] = BOTH_COLOR
+    return in_b, colors
+
+
+def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors `u`, `v` that complete the unit vector `n` to a right-handed frame."""
+    helper = np.eye(3)[np.argmin(np.abs(n))]
+    u = np.cross(n, helper)
+    u /= np.linalg.norm(u)
+    return u, np.cross(n, u)
+
+
 def sphere_mesh(resolution: int) -> tuple[np.ndarray, np.ndarray]:
     """Vertices `[r+1, 2r+1, 3]` of a latitude/longitude mesh and unit face centres `[r, 2r, 3]`."""
     theta = np.linspace(0.0, np.pi, resolution + 1)  # polar angle
@@ -69,11 +91,7 @@ def boundary_arcs(normals: np.ndarray, n_points: int = 720) -> list[np.ndarray]:
         norm = np.linalg.norm(n)
         if norm == 0:
             continue
-        n = n / norm
-        helper = np.eye(3)[np.argmin(np.abs(n))]
-        u = np.cross(n, helper)
-        u /= np.linalg.norm(u)
-        v = np.cross(n, u)
+        u, v = _plane_basis(n / norm)
         circle = np.cos(t)[:, None] * u + np.sin(t)[:, None] * v
         others = np.delete(normals, i, axis=0)
         keep = inside(others, circle, tol=1e-9)
@@ -133,13 +151,7 @@ def plot_belief_sphere(
     nb = _normals(belief, "belief")
     ne = _normals(bec, "bec") if bec is not None else None
     verts, centres = sphere_mesh(resolution)
-    in_b = inside(nb, centres)
-    colors = np.broadcast_to(OUTSIDE_COLOR, centres.shape[:-1] + (4,)).copy()
-    colors[in_b] = BELIEF_COLOR
-    if ne is not None:
-        in_e = inside(ne, centres)
-        colors[in_e & ~in_b] = BEC_COLOR
-        colors[in_e & in_b] = BOTH_COLOR
+    in_b, colors = _region_colors(nb, ne, centres, OUTSIDE_COLOR)
     if view is None:
         direction = None
         if w_true is not None:
@@ -259,22 +271,13 @@ def _zoom_inset(
     verts = region_vertices(nb)
     c = verts.mean(axis=0)
     c /= np.linalg.norm(c)
-    helper = np.eye(3)[np.argmin(np.abs(c))]
-    u = np.cross(c, helper)
-    u /= np.linalg.norm(u)
-    v = np.cross(c, u)
+    u, v = _plane_basis(c)
     half = 1.6 * np.tan(extent) + 1e-9
     g = np.linspace(-half, half, pixels)
     gx, gy = np.meshgrid(g, g[::-1])
     pts = c + gx[..., None] * u + gy[..., None] * v
     pts /= np.linalg.norm(pts, axis=-1, keepdims=True)
-    colors = np.broadcast_to(np.array([1.0, 1.0, 1.0, 1.0]), pts.shape[:-1] + (4,)).copy()
-    in_b = inside(nb, pts)
-    colors[in_b] = BELIEF_COLOR
-    if ne is not None:
-        in_e = inside(ne, pts)
-        colors[in_e & ~in_b] = BEC_COLOR
-        colors[in_e & in_b] = BOTH_COLOR
+    _, colors = _region_colors(nb, ne, pts, np.array([1.0, 1.0, 1.0, 1.0]))
     inset = fig.add_axes((0.66, 0.03, 0.32, 0.32))
     inset.imshow(colors, extent=(-half, half, -half, half), interpolation="nearest")
 
