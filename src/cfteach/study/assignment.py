@@ -11,7 +11,7 @@ import itertools
 import random
 from datetime import datetime, timedelta
 
-from sqlalchemy import func, or_, select
+from sqlalchemy import ColumnElement, func, or_, select
 from sqlalchemy.orm import Session as DBSession
 
 from .models import Session
@@ -28,11 +28,22 @@ def all_cells(study: dict) -> list[Cell]:
 def cell_counts(db: DBSession, study: dict, now: datetime) -> dict[Cell, int]:
     """Sessions that occupy each cell now: completed, or in progress and recently active."""
     cutoff = now - timedelta(minutes=float(study["cutoff_minutes"]))
+    return _count_by_cell(db, study, or_(
+        Session.status == "completed",
+        (Session.status == "in_progress") & (Session.last_active_at >= cutoff)))
+
+
+def completed_counts(db: DBSession, study: dict) -> dict[Cell, int]:
+    """Completed sessions per cell."""
+    return _count_by_cell(db, study, Session.status == "completed")
+
+
+def _count_by_cell(db: DBSession, study: dict, which: ColumnElement[bool]) -> dict[Cell, int]:
+    """Sessions of this study version matching `which` per cell, previews left out."""
     rows = db.execute(
         select(Session.condition, Session.domain_order, Session.test_set, func.count())
         .where(Session.study_version == study["version"], Session.is_preview.is_(False))
-        .where(or_(Session.status == "completed",
-                   (Session.status == "in_progress") & (Session.last_active_at >= cutoff)))
+        .where(which)
         .group_by(Session.condition, Session.domain_order, Session.test_set)
     ).all()
     counts = dict.fromkeys(all_cells(study), 0)

@@ -18,7 +18,7 @@ from sqlalchemy.orm import sessionmaker
 from cfteach.mdp.scoring import is_optimal
 
 from . import schemas
-from .assignment import all_cells, cell_counts, choose_cell
+from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .build import browser_game
 from .games import ScoringError, replay
 from .models import Event, Session, TestResponse, aware, utcnow
@@ -307,16 +307,7 @@ class StudyService:
         with self.ReadSession() as db, db.begin():
             now = utcnow()
             counts = cell_counts(db, self.study, now)
-            done = dict.fromkeys(all_cells(self.study), 0)
-            for cond, order, ts, n in db.execute(
-                    select(Session.condition, Session.domain_order, Session.test_set,
-                           func.count())
-                    .where(Session.study_version == self.study["version"],
-                           Session.is_preview.is_(False), Session.status == "completed")
-                    .group_by(Session.condition, Session.domain_order, Session.test_set)):
-                key = (cond, tuple(order.split(";")), ts)
-                if key in done:
-                    done[key] = n
+            done = completed_counts(db, self.study)
             status = dict(db.execute(select(Session.status, func.count()).where(
                 Session.study_version == self.study["version"], Session.is_preview.is_(False))
                 .group_by(Session.status)).all())
