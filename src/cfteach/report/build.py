@@ -212,9 +212,7 @@ def build_report(
         img = out / name / "img"
         img.mkdir(parents=True, exist_ok=True)
         rel = f"{name}/img"
-        conds = [c for c in CONDITIONS if c in res.curricula] + [
-            c for c in res.curricula if c not in CONDITIONS
-        ]
+        conds = _ordered_conditions(res.curricula)
         columns = []
         for cond in conds:
             cur = res.curricula[cond]
@@ -390,10 +388,8 @@ def _legend(name: str, demos: list[Mapping[str, Any]], layout_of: LayoutFn) -> l
 
     from cfteach.render.svg import legend_icons
 
-    seen: dict[int, Any] = {}
-    for demo in demos:
-        seen.setdefault(int(demo["env_index"]), None)
-    layouts = [layout_of(name, {"env_index": e}) for e in seen]
+    envs = dict.fromkeys(int(demo["env_index"]) for demo in demos)  # first-seen order
+    layouts = [layout_of(name, {"env_index": e}) for e in envs]
     if not layouts:
         return []
     base = layouts[0]
@@ -407,6 +403,7 @@ def _legend(name: str, demos: list[Mapping[str, Any]], layout_of: LayoutFn) -> l
 
 
 def _ordered_conditions(conds: Iterable[str]) -> list[str]:
+    """The paper's conditions in their usual order, then any others as first seen."""
     seen = list(dict.fromkeys(conds))
     return [c for c in CONDITIONS if c in seen] + [c for c in seen if c not in CONDITIONS]
 
