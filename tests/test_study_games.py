@@ -189,6 +189,10 @@ def test_abandoned_sessions_free_their_cell(toy_study, db_url: str) -> None:  # 
     with svc.Session() as db:
         counts = cell_counts(db, svc.study, utcnow())
     assert sum(counts.values()) == 36 and set(counts.values()) == {0, 1}
+    prog = svc.progress()  # the researcher's page: only the completed half, cell by cell
+    assert sum(c["completed"] for c in prog["cells"]) == 36
+    assert all(c["completed"] == c["occupied"] for c in prog["cells"])
+    assert prog["status"] == {"completed": 36, "in_progress": 36}
     for i in range(36):
         svc.start(SessionRequest(prolific_pid=f"B{i}", study_id="S"))
     with svc.Session() as db:
