@@ -16,8 +16,17 @@ from cfteach.geometry import Region
 from cfteach.teaching import CONDITIONS, select_tests, teach
 from cfteach.teaching.common import masking_order
 from cfteach.teaching.counterfactual import candidate_set
-from cfteach.teaching.visual import default_dissimilarity, reference_dissimilarity, tie_break
-from cfteach.teaching.visual_arrays import dissimilarity_matrix, dissimilarity_pairs
+from cfteach.teaching.visual import (
+    default_dissimilarity,
+    reference_dissimilarity,
+    tie_break,
+    typical_dissimilarity,
+)
+from cfteach.teaching.visual_arrays import (
+    dissimilarity_matrix,
+    dissimilarity_pairs,
+    typical_dissimilarities,
+)
 from test_geometry_human_models import PRIOR_SAMPLES as SPEC_MODELS  # spec §6.1's eight
 
 MASKS = {"delivery": ["hotswap", "toll", "step"], "tiles": ["B", "A", "step"],
@@ -151,6 +160,10 @@ def test_dissimilarity_pairs_match_scalar() -> None:
         want = [scalar(ds.instance(p), ds.start_state(p), ds.instance(q), ds.start_state(q))
                 for p, q in zip(x.tolist(), y.tolist(), strict=True)]
         assert got.tolist() == want
+        typical = typical_dissimilarities(ds, x[:5])
+        assert typical.tolist() == [
+            typical_dissimilarity(profile, ds.instance(p), ds.start_state(p))
+            for p in x[:5].tolist()]
 
 
 def test_curriculum_json_is_consistent(skate_ref) -> None:  # noqa: ANN001

@@ -69,24 +69,27 @@ def typical_dissimilarity(profile: str, inst: Instance, s: State) -> float:
 
 def tie_break(ds: DemoSet, candidates: Sequence[int], previous: int | None,
               rng: np.random.Generator) -> int:
-    """Pick one demo index among `candidates` by (complexity, dissimilarity, random)."""
-    cands = [int(c) for c in candidates]
-    if not cands:
+    """Pick one demo index among `candidates` by (complexity, dissimilarity, random).
+
+    The dissimilarities come from `visual_arrays` (the same measures, batched)."""
+    # imported here: visual_arrays builds on this module's state views
+    from cfteach.teaching.visual_arrays import (
+        dissimilarity_matrix,
+        typical_dissimilarities,
+        visual_arrays,
+    )
+
+    cands = np.array([int(c) for c in candidates], dtype=np.int64)
+    if not len(cands):
         raise ValueError("tie_break needs at least one candidate")
     rand = rng.permutation(len(cands))
     if len(cands) == 1:
-        return cands[0]
-    comp = [ds.instance(d).complexity for d in cands]
-    lo = min(comp)
-    keys = []
-    for i, d in enumerate(cands):
-        if comp[i] != lo:  # cannot win on the first key; skip the dissimilarity work
-            continue
-        inst, s = ds.instance(d), ds.start_state(d)
-        if previous is None:
-            dis = typical_dissimilarity(ds.profile, inst, s)
-        else:
-            dis = dissimilarity(ds.profile, inst, s, ds.instance(previous),
-                                ds.start_state(previous))
-        keys.append((comp[i], dis, int(rand[i]), d))
-    return min(keys)[3]
+        return int(cands[0])
+    comp = visual_arrays(ds).complexity[cands]
+    simplest = np.flatnonzero(comp == comp.min())  # the others cannot win on the first key
+    c = cands[simplest]
+    if previous is None:  # average D to the other states of the candidate's own instance
+        dis = typical_dissimilarities(ds, c)
+    else:
+        dis = dissimilarity_matrix(ds, c, np.array([previous]))[:, 0]
+    return int(c[np.lexsort((rand[simplest], dis))[0]])

@@ -63,6 +63,18 @@ def dissimilarity_pairs(ds: DemoSet, a: np.ndarray, b: np.ndarray) -> np.ndarray
     return _dissimilarity(ds, np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64))
 
 
+def typical_dissimilarities(ds: DemoSet, demos: np.ndarray) -> np.ndarray:
+    """`visual.typical_dissimilarity` of each demo: its average D to every other start
+    state of its own instance (0 if it has none)."""
+    out = np.zeros(len(demos))
+    for i, d in enumerate(np.asarray(demos, dtype=np.int64).tolist()):
+        same = np.flatnonzero(ds.env == ds.env[d])  # the instance's states, in state order
+        others = same[same != d]
+        if len(others):
+            out[i] = float(np.mean(dissimilarity_matrix(ds, np.array([d]), others)[0]))
+    return out
+
+
 def _dissimilarity(ds: DemoSet, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """D(a, b) for broadcastable demo index arrays `a`, `b` (result has their shape)."""
     va = visual_arrays(ds)
