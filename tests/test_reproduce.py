@@ -288,3 +288,11 @@ def test_a_user_domain_file_goes_through_the_whole_job(tmp_path):
     assert any(s.endswith(".gif") for s in parser.srcs)
     for src in parser.srcs:
         assert (out / src).is_file(), src
+
+
+def test_an_unknown_profile_is_named_before_any_work(tmp_path: Path) -> None:
+    from cfteach.report.reproduce import reproduce
+
+    with pytest.raises(ValueError, match=r"unknown profile 'nope'.*reference.*default"):
+        reproduce(tmp_path / "out", ["skateboard"], profile="nope", report=False)
+    assert not (tmp_path / "out").exists()

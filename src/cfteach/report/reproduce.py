@@ -17,8 +17,6 @@ from cfteach.report.build import (
     write_run,
 )
 
-PROFILES = ("default", "reference")
-
 
 def reproduce(
     out_dir: str | Path,
@@ -38,10 +36,10 @@ def reproduce(
 
     from cfteach import domains as dom
     from cfteach import teaching
+    from cfteach.bec.demos import check_profile
 
     names = list(domains) if domains else list(dom.builtin_names())
-    if profile not in PROFILES:
-        raise ValueError(f"unknown profile {profile!r}; use one of {', '.join(PROFILES)}")
+    check_profile(profile)  # before any work: the teacher's own check of the name
     unknown = [c for c in conditions if c not in CONDITIONS]
     if unknown:
         raise ValueError(f"unknown condition(s) {unknown}; use {', '.join(CONDITIONS)}")
