@@ -135,6 +135,9 @@ def test_must_finish_policy_marks_dead_ends() -> None:
     assert pol[0, 2] == 0 and pol[0, 3] == -1
     with pytest.raises(ValueError, match="Q must have shape"):
         best_tied_policy(b, [0, 0], q, w)
+    for bad in ([1], [-1]):  # one instance only; -1 must not wrap around to the last one
+        with pytest.raises(ValueError, match=r"env must be instance indices in 0\.\.0"):
+            best_tied_policy(b, bad, q, w)
 
 
 def test_follow_forced_first_action_and_unfinished() -> None:

@@ -254,6 +254,9 @@ def _pair_inputs(batch: MDPBatch, env: np.ndarray, Q: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Validate the (instance, model) pairs `env[P]` and their action values `Q[P, S, A]`."""
     env = np.asarray(env, dtype=np.int64).reshape(-1)
+    if env.size and (env.min() < 0 or env.max() >= batch.E):
+        raise ValueError(f"env must be instance indices in 0..{batch.E - 1}, "
+                         f"got {env.min()}..{env.max()}")
     Q = np.asarray(Q, dtype=float)
     if Q.shape != (len(env), batch.S, batch.A):
         raise ValueError(f"Q must have shape [P={len(env)}, S={batch.S}, A={batch.A}], "
