@@ -21,14 +21,14 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import httpx
-from sqlalchemy import func, select, text
+from sqlalchemy import func, select
 from tqdm import tqdm
 
 from cfteach.study.bot import run_participant
 from cfteach.study.build import init_study, toy_sources
-from cfteach.study.db import make_engine
+from cfteach.study.db import drop_schema, make_engine
 from cfteach.study.livesrv import free_port
-from cfteach.study.models import Base, Event, Session, TestResponse
+from cfteach.study.models import Event, Session, TestResponse
 
 MAX_PARTICIPANTS = 2000
 MAX_CONCURRENCY = 64
@@ -54,9 +54,7 @@ def main() -> int:
     db = args.db or f"sqlite:///{tmp / 'load.db'}"
     if db.startswith("postgresql"):
         engine = make_engine(db)
-        with engine.begin() as conn:  # a clean schema for a clean count
-            Base.metadata.drop_all(conn)
-            conn.execute(text("DROP TABLE IF EXISTS alembic_version"))
+        drop_schema(engine)  # a clean schema for a clean count
         engine.dispose()
     port = free_port()
     env = {**os.environ, "CFTEACH_LOG": "warning"}

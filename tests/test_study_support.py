@@ -6,11 +6,9 @@ import os
 from pathlib import Path
 
 import pytest
-from sqlalchemy import text
 
 from cfteach.study.build import init_study, toy_sources
-from cfteach.study.db import make_engine
-from cfteach.study.models import Base
+from cfteach.study.db import drop_schema, make_engine
 
 PG_ENV = "CFTEACH_TEST_POSTGRES_URL"
 
@@ -29,9 +27,7 @@ def postgres_url() -> str:
 def fresh_postgres() -> str:
     url = postgres_url()
     engine = make_engine(url)
-    with engine.begin() as conn:
-        Base.metadata.drop_all(conn)
-        conn.execute(text("DROP TABLE IF EXISTS alembic_version"))
+    drop_schema(engine)
     engine.dispose()
     return url
 

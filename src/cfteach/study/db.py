@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sqlalchemy import Engine, create_engine, event
+from sqlalchemy import Engine, create_engine, event, text
 
 HERE = Path(__file__).parent
 
@@ -48,6 +48,15 @@ def alembic_config(url: str):  # noqa: ANN201
     cfg.set_main_option("script_location", str(HERE / "migrations"))
     cfg.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
     return cfg
+
+
+def drop_schema(engine: Engine) -> None:
+    """Drop every study table and Alembic's version table (a clean database for tests)."""
+    from .models import Base
+
+    with engine.begin() as conn:
+        Base.metadata.drop_all(conn)
+        conn.execute(text("DROP TABLE IF EXISTS alembic_version"))
 
 
 def upgrade(engine: Engine) -> None:
