@@ -58,13 +58,7 @@ def nonzero_counts(sets: list[np.ndarray], n_features: int) -> np.ndarray:
 
 def masking_order(counts: np.ndarray) -> list[int]:
     """Features in ascending count order, first index on ties (one mask at a time)."""
-    c = np.asarray(counts, dtype=float).copy()
-    order = []
-    for _ in range(len(c)):
-        i = int(np.argmin(c))
-        order.append(i)
-        c[i] = np.inf
-    return order
+    return np.argsort(np.asarray(counts), kind="stable").tolist()
 
 
 @dataclass
