@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-ACTIONS = ("up", "down", "left", "right", "pickup", "dropoff")
+from cfteach.domains import ACTIONS  # the built-in domains' action order
+
+__all__ = ["ACTIONS", "CargoGrid", "PRACTICE", "PRACTICE_START_ENERGY", "PRACTICE_WEIGHTS"]
 _MOVES = {0: (0, 1), 1: (0, -1), 2: (-1, 0), 3: (1, 0)}
 
 Cell = tuple[int, int]
