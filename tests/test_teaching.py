@@ -208,6 +208,17 @@ def test_bad_input_is_named() -> None:
         teach("skateboard", "proposed", proportion=0)
     with pytest.raises(ValueError, match="neither a built-in"):
         teach("no-such-domain", "proposed")
+    from cfteach.teaching.testsel import training_keys
+
+    ds = demo_set(load("skateboard"), "reference")
+    start = {"agent": [2, 1], "skateboard": [1, 4], "carrying": False}
+    code = list(ds.batch.instances[3].env_code)
+    assert training_keys(ds, [{"demos": [{"env_code": code, "start_state": start}]}]) == \
+        training_keys(ds, [{"demos": [{"env_index": 3, "start_state": start}]}])
+    with pytest.raises(ValueError, match="env_code must be 3 bits"):  # was read as instance 1
+        training_keys(ds, [{"demos": [{"env_code": [1], "start_state": start}]}])
+    with pytest.raises(ValueError, match="training demo 0.*out of range"):  # was the last one
+        training_keys(ds, [{"demos": [{"env_index": -1, "start_state": start}]}])
 
 
 def test_tests_overlaps_levels_and_exclusion(skate_ref) -> None:  # noqa: ANN001

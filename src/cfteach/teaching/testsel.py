@@ -59,10 +59,9 @@ def training_keys(ds: DemoSet, training: Iterable[Any]) -> set[tuple[int, tuple[
                              f"not {ds.domain.name!r}")
         for j, demo in enumerate(cur["demos"]):
             try:
-                e = int(demo["env_index"]) if "env_index" in demo else \
-                    int("".join(str(int(b)) for b in demo["env_code"]), 2)
-                inst = ds.batch.instances[e]
-                keys.add((e, inst.state_from_json(demo["start_state"])))
+                inst = ds.domain.instance(int(demo["env_index"]) if "env_index" in demo
+                                          else demo["env_code"])
+                keys.add((inst.index, inst.state_from_json(demo["start_state"])))
             except (KeyError, IndexError, TypeError) as exc:
                 raise ValueError(f"training demo {j}: needs env_index (or env_code) and "
                                  f"start_state ({exc})") from None
