@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from cfteach.jsonable import to_jsonable
 from cfteach.simulate.learners import LearnerModel, Learners, learner_model
 from cfteach.simulate.summary import (
     h1_correlations,
@@ -242,7 +243,7 @@ class SweepResult:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         summ = self.summary()
-        (out / "results.json").write_text(json.dumps(_plain(summ), indent=2) + "\n")
+        (out / "results.json").write_text(json.dumps(to_jsonable(summ), indent=2) + "\n")
         sel = self.answers[self.answers["source"] == "selected"]
         sel.to_csv(out / "answers.csv", index=False)
         cand = self.answers[self.answers["source"] == "candidates"]
@@ -260,7 +261,7 @@ class SweepResult:
                 table, out / f"proportion_optimal_{dom}", domain=dom,
                 title=f"Simulated learners — {dom}")]
         summ["figures"] = figures
-        (out / "results.json").write_text(json.dumps(_plain(summ), indent=2) + "\n")
+        (out / "results.json").write_text(json.dumps(to_jsonable(summ), indent=2) + "\n")
         return summ
 
 
@@ -280,18 +281,6 @@ def _belief_summary(beliefs: pd.DataFrame) -> list[dict[str, Any]]:
                      "mean_constraints": float(g["belief_constraints"].mean()),
                      "ignored_updates": int(g["ignored_updates"].sum())})
     return rows
-
-
-def _plain(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    return obj
 
 
 def simulate(material: list[Material], learner_models: list[str | LearnerModel], *,
