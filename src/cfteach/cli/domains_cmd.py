@@ -12,7 +12,6 @@ import typer
 
 
 def _summary(dom: Any) -> dict[str, Any]:
-    insts = dom.instances()
     return {
         "name": dom.name,
         "title": dom.title,
@@ -28,8 +27,8 @@ def _summary(dom: Any) -> dict[str, Any]:
         "prior": dom.prior.tolist(),
         "posterior": dom.posterior.tolist(),
         "n_bits": dom.n_bits,
-        "instances": len(insts),
-        "demonstrations": sum(len(i.states()) for i in insts),
+        "instances": len(dom.instances()),
+        "demonstrations": dom.n_demonstrations(),
     }
 
 
