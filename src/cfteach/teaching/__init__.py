@@ -24,7 +24,6 @@ from cfteach.teaching.common import (
     CONDITIONS,
     check_condition,
     check_proportion,
-    default_max_demos,
     default_proportion,
 )
 from cfteach.teaching.records import CURRICULUM_SCHEMA, TESTS_SCHEMA, Curriculum, TestSet
@@ -77,7 +76,7 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
     _check_int("human_models", human_models, 1)
     dom = resolve_domain(domain)
     ds = demo_set(dom, profile)
-    k = default_max_demos(ds) if max_demos is None else _check_int("max_demos", max_demos, 1)
+    k = ds.domain.max_demos if max_demos is None else _check_int("max_demos", max_demos, 1)
     p = default_proportion(profile, condition, dom.name) if proportion is None \
         else check_proportion(proportion)
     settings: dict[str, Any] = {"human_models": human_models, "max_demos": k, "proportion": p,

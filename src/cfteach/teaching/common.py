@@ -23,11 +23,6 @@ def check_condition(condition: str) -> str:
     return condition
 
 
-def default_max_demos(ds: DemoSet) -> int:
-    """The domain file's ``[teaching] max_demos`` (the study's 5 / 5 / 7; default 5)."""
-    return ds.domain.max_demos
-
-
 def default_proportion(profile: str, condition: str, domain_name: str) -> float:
     if profile == "reference":
         return REFERENCE_PROPORTION.get((condition, domain_name), 1.0)
