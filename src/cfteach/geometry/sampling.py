@@ -82,28 +82,26 @@ def sample_reference_grid(
     v_lo, v_hi = (1 - np.cos(ele.min())) / 2, (1 - np.cos(ele.max())) / 2
     density = _START_DENSITY
     fine = np.zeros((0, 3))
-    bar = tqdm(desc="fine grid density", unit="step", leave=False, disable=not sys.stderr.isatty())
-    while density <= max(max_density, _START_DENSITY):
-        bar.update()
-        theta = 2 * np.pi * np.linspace(u_lo, u_hi, density * m)
-        phi = np.arccos(1 - 2 * np.linspace(v_lo, v_hi, density * m))
-        # meshgrid(theta, phi) flattened row-major (phi outer); the trigonometry is done on
-        # the axes only, the products are the same floats as on the full mesh
-        n = len(theta)
-        fine = np.empty((n, n, 3))
-        fine[..., 0] = np.sin(phi)[:, None] * np.cos(theta)[None, :]
-        fine[..., 1] = np.sin(phi)[:, None] * np.sin(theta)[None, :]
-        fine[..., 2] = np.cos(phi)[:, None]
-        fine = fine.reshape(-1, 3)
-        fine = fine[_feasible(fine, cons)]
-        if len(fine) == m:
-            bar.close()
-            return fine
-        if len(fine) > m:
-            bar.close()
-            return fine[greedy_k_centres(fine, m)]
-        density += 1
-    bar.close()
+    with tqdm(desc="fine grid density", unit="step", leave=False,
+              disable=not sys.stderr.isatty()) as bar:
+        while density <= max(max_density, _START_DENSITY):
+            bar.update()
+            theta = 2 * np.pi * np.linspace(u_lo, u_hi, density * m)
+            phi = np.arccos(1 - 2 * np.linspace(v_lo, v_hi, density * m))
+            # meshgrid(theta, phi) flattened row-major (phi outer); the trigonometry is done
+            # on the axes only, the products are the same floats as on the full mesh
+            n = len(theta)
+            fine = np.empty((n, n, 3))
+            fine[..., 0] = np.sin(phi)[:, None] * np.cos(theta)[None, :]
+            fine[..., 1] = np.sin(phi)[:, None] * np.sin(theta)[None, :]
+            fine[..., 2] = np.cos(phi)[:, None]
+            fine = fine.reshape(-1, 3)
+            fine = fine[_feasible(fine, cons)]
+            if len(fine) == m:
+                return fine
+            if len(fine) > m:
+                return fine[greedy_k_centres(fine, m)]
+            density += 1
     return fine
 
 
