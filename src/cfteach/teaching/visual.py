@@ -15,6 +15,9 @@ Two dissimilarity measures:
 
 With no previous demonstration, a candidate's dissimilarity is its average D to every other
 state of its own instance ("a typical-looking start state"), in both profiles.
+
+The scalar functions here define the measures (the tests check the batched forms against
+them); `tie_break` and SCOT compute them batched with `visual_arrays`.
 """
 
 from __future__ import annotations
