@@ -25,17 +25,12 @@ from cfteach.study.export import export_csv
 from cfteach.study.games import best_path, shortest_path
 from cfteach.study.livesrv import running
 from cfteach.study.models import Event, TestResponse
+from cfteach.study.screenshots import ARGS, CHROMIUM, KEYS
 from cfteach.study.server import create_app
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 toy_study = test_study_support.toy_study
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-        "--disable-component-update", "--disable-sync", "--no-first-run",
-        "--disable-dev-shm-usage"]
-KEYS = {"up": "ArrowUp", "down": "ArrowDown", "left": "ArrowLeft", "right": "ArrowRight",
-        "pickup": "p", "dropoff": "d"}
 PID = "60aa0bb0cc0dd0ee0ff00112"
 
 
