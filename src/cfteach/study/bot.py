@@ -68,7 +68,7 @@ def run_participant(client: Any, params: dict | None, *, study: dict | None = No
             out = send(i, "likert", {"informativeness": inf, "mental_effort": eff})
         elif kind == "test":
             if study is not None:
-                t = _find_test(study, s)
+                t = find_test(study, s)
                 moves = best_path(t["game"], study["domain_info"][s["domain"]]["weights"])
             else:
                 moves = shortest_path(s["game"])
@@ -97,8 +97,8 @@ def _detour(game: dict) -> list[str]:
     raise BotError("no detour possible from the practice start")
 
 
-def _find_test(study: dict, s: dict) -> dict:
-    # The page does not name the test; match it by its public table (bots only).
+def find_test(study: dict, s: dict) -> dict:
+    """The study's test shown on test page `s` (the page does not name it: bots only)."""
     for test_set in study["tests"][s["domain"]]:
         for t in test_set:
             if t["game"]["states"] == s["game"]["states"] and t["layout"] == s["layout"]:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import httpx
 
-from .bot import run_participant
+from .bot import find_test, run_participant
 from .config import load_study
 from .games import best_path
 from .livesrv import running
@@ -78,8 +78,7 @@ def _stage(page, st: dict, study: dict) -> None:  # noqa: ANN001
         page.wait_for_timeout(s["step_ms"] * (len(s["demos"][0]["states"]) // 2 - 1))
     elif s["kind"] in ("test", "practice"):
         if s["kind"] == "test":
-            t = next(t for ts in study["tests"][s["domain"]] for t in ts
-                     if t["game"]["states"] == s["game"]["states"])
+            t = find_test(study, s)
             moves = best_path(t["game"], study["domain_info"][s["domain"]]["weights"])
         else:
             moves = best_path(s["game"], s["weights"])
