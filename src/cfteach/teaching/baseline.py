@@ -24,7 +24,13 @@ from cfteach.bec.constraints import one_action_rows
 from cfteach.bec.demos import DemoSet
 from cfteach.bec.rows import reduce_and_measure
 from cfteach.geometry import Region
-from cfteach.teaching.common import DemoRecord, masking_order, nonzero_counts, one_step_sets
+from cfteach.teaching.common import (
+    DemoRecord,
+    masking_order,
+    nonzero_counts,
+    one_step_sets,
+    tightened,
+)
 from cfteach.teaching.visual_arrays import (
     dissimilarity_matrix,
     dissimilarity_pairs,
@@ -227,8 +233,7 @@ def baseline_curriculum(ds: DemoSet, *, feature_scaffolding: bool, max_demos: in
     running = Region(np.asarray(ds.domain.prior, dtype=np.int64), dim=F)
     for d in order:
         before = running.area()
-        running = Region(Region(np.vstack([running.reduced(), sets[d]]), dim=F).reduced(),
-                         dim=F)
+        running = tightened(running, sets[d])
         after = running.area()
         records.append(DemoRecord(demo=d, constraints=sets[d],
                                   knowledge_gain=before / after if after > 0 else 0.0,

@@ -9,6 +9,7 @@ import numpy as np
 from cfteach.bec.constraints import one_action_rows
 from cfteach.bec.demos import DemoSet
 from cfteach.bec.rows import reduce_sets
+from cfteach.geometry import Region
 
 CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
 
@@ -66,3 +67,10 @@ class DemoRecord:
     belief_area_after: float
     masked_feature: str | None
     extra: dict = field(default_factory=dict)
+
+
+def tightened(belief: Region, rows: np.ndarray) -> Region:
+    """The belief after also learning `rows` (``c . w >= 0``), kept irredundant so that its
+    constraints can be reported as they are."""
+    both = Region(np.vstack([belief.reduced(), rows]), dim=belief.dim)
+    return Region(both.reduced(), dim=belief.dim)

@@ -20,7 +20,13 @@ from cfteach.bec.demos import DemoSet
 from cfteach.bec.gain import knowledge_gains
 from cfteach.bec.rows import RowSet, reduce_sets
 from cfteach.geometry import Region
-from cfteach.teaching.common import DemoRecord, masking_order, nonzero_counts, one_step_sets
+from cfteach.teaching.common import (
+    DemoRecord,
+    masking_order,
+    nonzero_counts,
+    one_step_sets,
+    tightened,
+)
 from cfteach.teaching.sampling import sample_models
 from cfteach.teaching.visual import tie_break
 
@@ -164,8 +170,7 @@ def counterfactual_curriculum(
         prev = chosen[-1].demo if chosen else None
         d = tie_break(ds, cands, prev, tie_rng)
         C = reduce_sets(joint, np.array([d]))[d]
-        running = Region(np.vstack([running.reduced().astype(np.int64), C]), dim=F)
-        running = Region(running.reduced(), dim=F)
+        running = tightened(running, C)
         chosen.append(DemoRecord(demo=d, constraints=C, knowledge_gain=float(gains[d]),
                                  belief_area_after=running.area(),
                                  masked_feature=None if mask is None else names[mask]))
