@@ -3,18 +3,16 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from cfteach.analysis.aggregate import Frames, build_frames
 from cfteach.analysis.exclusions import ExclusionConfig, apply_exclusions, quality_flags
 from cfteach.analysis.io import CONDITIONS, StudyExport, load_export
+from cfteach.jsonable import to_jsonable
 
 PADJUST_METHODS = ("holm", "bonf", "sidak", "fdr_bh", "fdr_by", "none")
 
@@ -33,18 +31,6 @@ class AnalysisConfig:
             raise ValueError(
                 f"padjust must be one of {', '.join(PADJUST_METHODS)}, got {self.padjust!r}"
             )
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
 
 
 def compute_results(
@@ -102,7 +88,7 @@ def compute_results(
         "quality_flags": quality_flags(kept.participants).to_dict(orient="records"),
         **results,
     }
-    return _jsonable(summary), frames
+    return to_jsonable(summary), frames
 
 
 def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str, Any]:

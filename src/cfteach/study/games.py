@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from cfteach.jsonable import to_jsonable
+
 MAX_GAME_STATES = 20_000
 
 
@@ -63,7 +65,7 @@ def build_game(instance: Any, start_state: Any, actions: tuple[str, ...]) -> dic
             phi.append(None)
     return {
         "actions": list(actions),
-        "states": [_plain(key(s)) for s in order],
+        "states": [to_jsonable(key(s)) for s in order],
         "next": nxt,
         "terminal": terminal,
         "phi": phi,
@@ -116,20 +118,6 @@ def optimal_value(game: dict, weights: list[float], *, max_sweeps: int = 10_000)
     """
     nxt, rew, term = _arrays(game, weights)
     return float(_values(nxt, rew, term, max_sweeps)[0])
-
-
-def _plain(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (np.bool_,)):
-        return bool(obj)
-    if isinstance(obj, (np.floating,)):
-        return float(obj)
-    return obj
 
 
 def _arrays(game: dict, weights: list[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
