@@ -2,13 +2,38 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+import re
+from typing import Annotated, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, StringConstraints
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    StringConstraints,
+    ValidationInfo,
+    create_model,
+)
+from pydantic_core import PydanticCustomError
 
 from .texts import EDUCATION, GENDERS
 
-IdStr = Annotated[str, StringConstraints(max_length=64)]
+# Prolific ids: letters, digits, '_' and '-', or an unfilled placeholder such as
+# {{%PROLIFIC_PID%}} (a researcher's preview). The pattern is in the OpenAPI schema too,
+# so a client (or a fuzzer) can tell a valid id from the schema alone.
+ID_PATTERN = r"^(?:[A-Za-z0-9_-]*|\{\{?%.*%\}?\})$"
+_ID_RE = re.compile(ID_PATTERN)
+
+
+def _prolific_id(value: str, info: ValidationInfo) -> str:
+    if not _ID_RE.match(value):
+        raise PydanticCustomError("bad_id", "{name} may contain only letters, digits, '_' "
+                                  "and '-'", {"name": (info.field_name or "id").upper()})
+    return value
+
+
+IdStr = Annotated[str, StringConstraints(max_length=64), AfterValidator(_prolific_id),
+                  Field(json_schema_extra={"pattern": ID_PATTERN})]
 Action = Literal["up", "down", "left", "right", "pickup", "dropoff"]
 Likert5 = Annotated[int, Field(ge=1, le=5)]
 
@@ -84,3 +109,18 @@ PAYLOADS: dict[str, type[Strict]] = {
     "demo_play_start": DemoPlayStart, "demo_play_end": DemoPlayEnd, "likert": Likert,
     "test_response": TestAnswer, "demographics": Demographics, "page_load": Empty,
 }
+
+
+def _typed_event(type_: str, payload: type[Strict]) -> type[EventRequest]:
+    """An EventRequest whose `type` is `type_` and whose payload is already validated."""
+    required = any(f.is_required() for f in payload.model_fields.values())
+    name = "".join(w.capitalize() for w in type_.split("_")) + "Event"
+    return create_model(name, __base__=EventRequest, type=(Literal[type_], ...),
+                        payload=(payload, ... if required else Field(default_factory=payload)))
+
+
+# The body of POST /api/event: one variant per event type, chosen by `type`, so the OpenAPI
+# schema states each type's payload and an unknown type or a bad payload is refused (422)
+# before the session is looked at. Every variant is an EventRequest.
+EventBody = Annotated[Union[tuple(_typed_event(t, m) for t, m in PAYLOADS.items())],  # noqa: UP007
+                      Field(discriminator="type")]

@@ -11,12 +11,14 @@ from fastapi import FastAPI, Header, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.middleware.base import BaseHTTPMiddleware
 
 from . import schemas
 from .config import load_study
 from .db import make_engine, upgrade
 from .ratelimit import RateLimiter
+from .responses import EventAck, Progress, SessionStarted, State, errors
 from .service import ApiError, StudyService
 
 HERE = Path(__file__).parent
@@ -79,13 +81,20 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     async def _api_error(_req: Request, e: ApiError) -> JSONResponse:
         return _err(e.status, e.code, e.message)
 
+    @app.exception_handler(StarletteHTTPException)
+    async def _http_error(_req: Request, e: StarletteHTTPException) -> JSONResponse:
+        # 400 unreadable body, 404, 405: the same body shape as every other refusal.
+        response = _err(e.status_code, "http_error", str(e.detail))
+        response.headers.update(e.headers or {})  # e.g. Allow on a 405
+        return response
+
     @app.exception_handler(RequestValidationError)
     async def _bad_request(_req: Request, e: RequestValidationError) -> JSONResponse:
         err = e.errors()[0] if e.errors() else {"loc": (), "msg": "invalid request"}
         loc = ".".join(str(x) for x in err.get("loc", ()))
         return _err(422, "bad_request", f"{loc}: {err.get('msg')}")
 
-    @app.get("/favicon.ico")
+    @app.get("/favicon.ico", status_code=204, response_class=Response)
     def favicon() -> Response:
         return Response(status_code=204)
 
@@ -93,7 +102,8 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     def index() -> HTMLResponse:
         return HTMLResponse(page.replace("{{title}}", html.escape(study["title"])))
 
-    @app.post("/api/session")
+    @app.post("/api/session", response_model=SessionStarted,
+              responses=errors(400, 413, 415, 422, 429))
     def start(req: schemas.SessionRequest, request: Request) -> JSONResponse:
         addr = request.client.host if request.client else "?"
         if not session_limit.allow(addr):
@@ -102,27 +112,30 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
         return JSONResponse({"token": row.token, "resumed": resumed,
                              "participant_id": row.participant_id})
 
-    @app.get("/api/state")
+    @app.get("/api/state", response_model=State, responses=errors(401, 410, 422))
     def state(x_session_token: str | None = Header(default=None)) -> JSONResponse:
         return JSONResponse(service.state(x_session_token))
 
-    @app.post("/api/event")
-    def event(req: schemas.EventRequest, request: Request,
+    @app.post("/api/event", response_model=EventAck,
+              responses=errors(400, 401, 409, 410, 413, 415, 422, 429))
+    def event(req: schemas.EventBody, request: Request,
               x_session_token: str | None = Header(default=None)) -> JSONResponse:
         if not event_limit.allow(x_session_token or "?"):
             raise ApiError(429, "rate_limited", "too many events; slow down")
         return JSONResponse(service.post_event(x_session_token, req))
 
     def _check_researcher(given: str | None) -> None:
-        if not given or not hmac.compare_digest(given, token):
+        # Bytes: compare_digest refuses non-ASCII str (a 500 before; found by the fuzzer).
+        if not given or not hmac.compare_digest(given.encode(), token.encode()):
             raise ApiError(403, "forbidden", "researcher token required")
 
-    @app.get("/api/researcher/progress")
-    def progress(x_researcher_token: str | None = Header(default=None)) -> dict:
+    @app.get("/api/researcher/progress", response_model=Progress,
+             responses=errors(403, 422))
+    def progress(x_researcher_token: str | None = Header(default=None)) -> JSONResponse:
         _check_researcher(x_researcher_token)
-        return service.progress()
+        return JSONResponse(service.progress())
 
-    @app.get("/researcher", response_class=HTMLResponse)
+    @app.get("/researcher", response_class=HTMLResponse, responses=errors(403, 422))
     def researcher(token: str | None = None) -> HTMLResponse:
         _check_researcher(token)
         return HTMLResponse(_progress_html(service.progress(), study["title"]))
