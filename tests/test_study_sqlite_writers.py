@@ -1,0 +1,92 @@
+"""SQLite write transactions of one process queue on a lock instead of SQLite's busy polling."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import pytest
+from sqlalchemy import event, text
+
+from cfteach.study import db as study_db
+from cfteach.study.db import make_engine
+
+
+def _engine_without_busy_wait(path: Path):  # noqa: ANN202
+    """A study engine whose SQLite connections give up at once on a locked database, so
+    only the in-process queue can make a second writer wait."""
+    engine = make_engine(f"sqlite:///{path}")
+
+    @event.listens_for(engine, "connect")
+    def _no_busy_wait(dbapi_conn, _rec):  # noqa: ANN001
+        dbapi_conn.execute("PRAGMA busy_timeout=0")
+
+    with engine.begin() as conn:
+        conn.execute(text("CREATE TABLE t (n INTEGER)"))
+    return engine
+
+
+def test_concurrent_writers_wait_their_turn(tmp_path: Path) -> None:
+    engine = _engine_without_busy_wait(tmp_path / "w.db")
+    errors: list[Exception] = []
+    start = threading.Barrier(8)
+
+    def writer(k: int) -> None:
+        start.wait()
+        for i in range(25):
+            try:
+                with engine.begin() as conn:
+                    conn.execute(text("INSERT INTO t VALUES (:n)"), {"n": k * 100 + i})
+            except Exception as e:  # noqa: BLE001  (collected and asserted below)
+                errors.append(e)
+
+    threads = [threading.Thread(target=writer, args=(k,)) for k in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    with engine.connect() as conn:
+        assert conn.scalar(text("SELECT count(*) FROM t")) == 200
+    engine.dispose()
+
+
+def test_the_lock_is_released_by_rollback_and_reads_do_not_take_it(tmp_path: Path) -> None:
+    engine = _engine_without_busy_wait(tmp_path / "r.db")
+    with pytest.raises(RuntimeError), engine.begin() as conn:
+        conn.execute(text("INSERT INTO t VALUES (1)"))
+        raise RuntimeError("abort")
+    reader = engine.execution_options(readonly=True)
+    with reader.connect() as r, r.begin():
+        # A read transaction stays open while a writer commits (WAL): no lock between them.
+        assert r.scalar(text("SELECT count(*) FROM t")) == 0
+        with engine.begin() as conn:
+            conn.execute(text("INSERT INTO t VALUES (2)"))
+    with engine.connect() as conn:
+        assert conn.scalar(text("SELECT n FROM t")) == 2
+    engine.dispose()
+
+
+def test_a_writer_gives_up_after_the_wait_limit(tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    engine = _engine_without_busy_wait(tmp_path / "g.db")
+    monkeypatch.setattr(study_db, "WRITE_WAIT_S", 0.05)
+    held = threading.Event()
+    done = threading.Event()
+
+    def hold() -> None:
+        with engine.begin() as conn:
+            conn.execute(text("INSERT INTO t VALUES (1)"))
+            held.set()
+            done.wait(10)
+
+    t = threading.Thread(target=hold)
+    t.start()
+    held.wait(10)
+    with pytest.raises(Exception, match="database is locked .in-process"), engine.begin() as c:
+        c.execute(text("INSERT INTO t VALUES (2)"))
+    done.set()
+    t.join()
+    with engine.connect() as conn:
+        assert conn.scalar(text("SELECT count(*) FROM t")) == 1
+    engine.dispose()
