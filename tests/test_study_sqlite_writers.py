@@ -1,14 +1,16 @@
-"""SQLite write transactions of one process queue on a lock instead of SQLite's busy polling."""
+"""SQLite writes of one server: writers queue on a lock (not SQLite's busy polling), and a
+commit returns only after an fsync of the write-ahead log, one fsync serving many commits."""
 
 from __future__ import annotations
 
+import os
 import threading
 from pathlib import Path
 
 import pytest
 from sqlalchemy import event, text
 
-from cfteach.study import db as study_db
+from cfteach.study import sqlite_writes
 from cfteach.study.db import make_engine
 
 
@@ -70,7 +72,7 @@ def test_the_lock_is_released_by_rollback_and_reads_do_not_take_it(tmp_path: Pat
 def test_a_writer_gives_up_after_the_wait_limit(tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     engine = _engine_without_busy_wait(tmp_path / "g.db")
-    monkeypatch.setattr(study_db, "WRITE_WAIT_S", 0.05)
+    monkeypatch.setattr(sqlite_writes, "WRITE_WAIT_S", 0.05)
     held = threading.Event()
     done = threading.Event()
 
@@ -89,4 +91,85 @@ def test_a_writer_gives_up_after_the_wait_limit(tmp_path: Path,
     t.join()
     with engine.connect() as conn:
         assert conn.scalar(text("SELECT count(*) FROM t")) == 1
+    engine.dispose()
+
+
+def _wal_sync(engine) -> sqlite_writes.WalSync:  # noqa: ANN001
+    with engine.connect() as conn:
+        return conn.connection.dbapi_connection.wal_sync
+
+
+def test_each_write_commit_waits_for_an_fsync_of_the_log(tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    engine = _engine_without_busy_wait(tmp_path / "d.db")
+    synced: list[str] = []
+    real_fsync = os.fsync
+
+    def fsync(fd: int) -> None:
+        synced.append(os.readlink(f"/proc/self/fd/{fd}"))
+        real_fsync(fd)
+
+    monkeypatch.setattr(sqlite_writes.os, "fsync", fsync)
+    with engine.connect() as conn:
+        assert conn.exec_driver_sql("PRAGMA synchronous").scalar() == 1  # NORMAL + our sync
+    for i in range(3):
+        with engine.begin() as conn:
+            conn.execute(text("INSERT INTO t VALUES (:n)"), {"n": i})
+        assert len(synced) == i + 1 and synced[-1] == str((tmp_path / "d.db-wal").resolve())
+    with engine.execution_options(readonly=True).begin() as conn:  # reads: no fsync
+        conn.execute(text("SELECT count(*) FROM t"))
+    assert len(synced) == 3
+    engine.dispose()
+
+
+def test_commits_waiting_together_share_one_fsync(tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    engine = _engine_without_busy_wait(tmp_path / "g.db")
+    sync = _wal_sync(engine)
+    base = sync.committed
+    real_fsync = os.fsync
+    first = threading.Event()
+
+    def fsync(fd: int) -> None:
+        # The first fsync lasts until the 7 other commits are waiting for durability.
+        if not first.is_set():
+            first.set()
+            for _ in range(1000):
+                if sync.committed >= base + 8:
+                    break
+                threading.Event().wait(0.01)
+        real_fsync(fd)
+
+    monkeypatch.setattr(sqlite_writes.os, "fsync", fsync)
+    fsyncs = sync.fsyncs
+
+    def writer(k: int) -> None:
+        with engine.begin() as conn:
+            conn.execute(text("INSERT INTO t VALUES (:n)"), {"n": k})
+
+    threads = [threading.Thread(target=writer, args=(k,)) for k in range(8)]
+    threads[0].start()
+    first.wait(10)
+    for t in threads[1:]:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sync.committed == sync.durable == base + 8
+    assert sync.fsyncs - fsyncs == 2  # the first commit's, then one for the other seven
+    engine.dispose()
+
+
+def test_a_failed_fsync_fails_the_commit(tmp_path: Path,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    engine = _engine_without_busy_wait(tmp_path / "f.db")
+
+    def fsync(fd: int) -> None:
+        raise OSError(5, "Input/output error")
+
+    monkeypatch.setattr(sqlite_writes.os, "fsync", fsync)
+    with pytest.raises(OSError, match="Input/output"), engine.begin() as conn:
+        conn.execute(text("INSERT INTO t VALUES (1)"))
+    monkeypatch.undo()
+    with engine.begin() as conn:  # the next writer is not stuck
+        conn.execute(text("INSERT INTO t VALUES (2)"))
     engine.dispose()

@@ -1,74 +1,32 @@
-"""Engines and migrations: SQLite (WAL, synchronous FULL) by default, PostgreSQL by URL."""
+"""Engines and migrations: SQLite (WAL, durable commits) by default, PostgreSQL by URL."""
 
 from __future__ import annotations
 
-import sqlite3
-import threading
 from pathlib import Path
 
-from sqlalchemy import Engine, create_engine, event, text
+from sqlalchemy import Engine, create_engine, event, make_url, text
+
+from .sqlite_writes import WalSync, connection_class
 
 HERE = Path(__file__).parent
-WRITE_WAIT_S = 30.0  # as SQLite's busy_timeout: then "database is locked"
-
-
-def _queued_writers() -> type[sqlite3.Connection]:
-    """A sqlite3 connection class whose write transactions queue on one in-process lock.
-
-    SQLite lets one writer in at a time; the others poll with growing sleeps (its busy
-    handler: 1, 2, 5 ... 100 ms), unfairly, so under load some waited seconds while the lock
-    was free most of the time (bench/bench_study_load.py showed it). Threads of one
-    server now wait on a lock that hands over at once; other processes still meet the busy
-    handler.
-    """
-    lock = threading.Lock()
-
-    class QueuedWriters(sqlite3.Connection):
-        holds_write_lock = False
-
-        def wait_for_write_lock(self) -> None:
-            if not lock.acquire(timeout=WRITE_WAIT_S):
-                raise sqlite3.OperationalError("database is locked (in-process writers)")
-            self.holds_write_lock = True
-
-        def release_write_lock(self) -> None:
-            if self.holds_write_lock:
-                self.holds_write_lock = False
-                lock.release()
-
-        def commit(self) -> None:
-            try:
-                super().commit()
-            finally:
-                self.release_write_lock()
-
-        def rollback(self) -> None:
-            try:
-                super().rollback()
-            finally:
-                self.release_write_lock()
-
-        def close(self) -> None:
-            try:
-                super().close()
-            finally:
-                self.release_write_lock()
-
-    return QueuedWriters
 
 
 def make_engine(url: str) -> Engine:
     """An engine with the durability settings the study needs."""
     if url.startswith("sqlite"):
+        path = make_url(url).database
+        # A file: NORMAL + our own WAL fsync after each commit, shared by concurrent commits
+        # (the durability of FULL; see sqlite_writes). In memory: nothing to sync.
+        sync = WalSync(str(Path(path).resolve())) if path and path != ":memory:" else None
         engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 30,
-                                                  "factory": _queued_writers()})
+                                                  "factory": connection_class(sync)})
 
         @event.listens_for(engine, "connect")
         def _pragmas(dbapi_conn, _rec):  # noqa: ANN001
             dbapi_conn.isolation_level = None  # we emit BEGIN ourselves (below)
             cur = dbapi_conn.cursor()
             cur.execute("PRAGMA journal_mode=WAL")
-            cur.execute("PRAGMA synchronous=FULL")
+            cur.execute(f"PRAGMA synchronous={'NORMAL' if sync else 'FULL'}")
             cur.execute("PRAGMA foreign_keys=ON")
             cur.execute("PRAGMA busy_timeout=30000")
             cur.close()
