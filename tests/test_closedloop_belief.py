@@ -360,3 +360,12 @@ def test_plot_particles_sphere():
         plot_particles_sphere(np.ones((5, 4)), np.full(5, 0.2))
     with pytest.raises(ValueError, match="weights"):
         plot_particles_sphere(b.particles, b.weights[:-1])
+
+
+def test_doc_example_runs(tmp_path):
+    from doc_examples import code_blocks, run_script
+
+    blocks = code_blocks("closed-loop-belief.md")
+    assert len(blocks) == 1
+    done = run_script(blocks[0], tmp_path)
+    assert "P(optimal on a test)" in done.stdout and "expected area" in done.stdout
