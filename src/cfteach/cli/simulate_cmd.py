@@ -81,7 +81,7 @@ def register(app: typer.Typer) -> None:
                    f"{len(summ['figures'])} figures")
 
 
-def _teacher_settings(pairs: list[str]) -> dict:
+def _teacher_settings(pairs: list[str] | None) -> dict:
     """``field=value`` pairs to typed closed-loop settings (ValueError names a bad pair)."""
     import dataclasses
 
@@ -89,7 +89,7 @@ def _teacher_settings(pairs: list[str]) -> dict:
 
     types = {f.name: f.type for f in dataclasses.fields(TeacherSettings)}
     out: dict = {}
-    for pair in pairs:
+    for pair in pairs or []:
         key, eq, value = pair.partition("=")
         if not eq or key not in types:
             raise ValueError(f"bad --teacher setting {pair!r}: write field=value with a field "

@@ -50,13 +50,13 @@ class TeacherSettings:
     n_particles: int = 1000
     p_learn: float = 0.8          # chance a shown demonstration is absorbed (belief model)
     temperature: float = 0.5      # Boltzmann temperature of test answers (belief model)
-    zpd_proportion: float = 0.7   # target cut, as a share of the largest cut (paper: 0.7)
+    zpd_proportion: float = 1.0   # target cut, as a share of the largest (paper's cf: 0.7)
     zpd_band: tuple[float, float] = (0.3, 1.0)  # admissible cuts, as shares of the largest
     min_gain: float = 0.02        # a lesson cutting less belief than this teaches nothing
-    stop_threshold: float = 0.9   # predicted P(optimal) on held-out tests that ends teaching
+    stop_threshold: float = 0.95  # predicted P(optimal) on held-out tests that ends teaching
     remedial_threshold: float = 0.8  # below this P(optimal) on a failed test: remedial lesson
     min_discrimination: float = 0.05  # a diagnostic test must split the particles this much
-    max_items: int = 30           # demonstrations + tests + feedback
+    max_items: int = 40           # demonstrations + tests + feedback
 
     def __post_init__(self) -> None:
         checks = [
