@@ -365,7 +365,8 @@ def test_plot_particles_sphere():
 def test_doc_example_runs(tmp_path):
     from doc_examples import code_blocks, run_script
 
-    blocks = code_blocks("closed-loop-belief.md")
-    assert len(blocks) == 1
-    done = run_script(blocks[0], tmp_path)
+    blocks = code_blocks("closed-loop.md")
+    example = [b for b in blocks if "ParticleBelief(" in b]
+    assert len(example) == 1
+    done = run_script(example[0], tmp_path)
     assert "P(optimal on a test)" in done.stdout and "expected area" in done.stdout

@@ -275,12 +275,14 @@ def plot_particles_sphere(
     prior: Any = None,
     ax: Any = None,
     resolution: int = 72,
+    view: tuple[float, float] | None = None,
 ) -> Any:
     """Draw a particle belief (cfteach.closedloop) on the unit sphere as `plot_belief_sphere`
     draws a region: dots in the belief's dark green, bigger and more opaque with more weight
     (relative to an equal share, capped at 6 times it); the
     prior region faintly shaded with its boundary; the true weights as the red star. Only the
-    side facing the viewer is drawn (the view centres on w*, else on the weighted mean).
+    side facing the viewer is drawn (the view centres on w*, else on the weighted mean;
+    `view` = (elevation, azimuth) in degrees fixes it, e.g. to compare panels).
     Returns the Figure."""
     import matplotlib
 
@@ -306,9 +308,10 @@ def plot_particles_sphere(
     if nb is not None:
         colors[inside(nb, centres)] = PRIOR_COLOR
     total = w.sum()
-    direction = np.asarray(w_true, dtype=float) if w_true is not None else (
-        w @ pts / total if total > 0 else None)
-    view = _auto_view(direction)
+    if view is None:  # centre on w*, else on the weighted mean
+        direction = np.asarray(w_true, dtype=float) if w_true is not None else (
+            w @ pts / total if total > 0 else None)
+        view = _auto_view(direction)
     eye = _eye(view)
     fig, ax = _sphere_axes(ax, title)
     _draw_mesh(ax, verts, centres, colors, eye)
