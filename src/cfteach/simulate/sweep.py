@@ -357,13 +357,14 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
                 raise ValueError(f"no curriculum for condition {cond!r} in domain {label}")
             for model in models:
                 key = (label, mat.seed, cond, model.name)
+                shown = demos
                 if demos_override is not None and key in demos_override:
-                    demos = demos_override[key]
+                    shown = demos_override[key]
                 elif cond not in mat.curricula and cond not in (NO_TEACHING, CLOSED_LOOP):
                     raise ValueError(f"no curriculum for condition {cond!r} in domain {label}")
                 for b, sl in enumerate(chunk_slices(n_learners, chunk_size=chunk_learners)):
                     chunks.append({"domain": mat.domain, "model": model, "n": sl.stop - sl.start,
-                                   "demos": demos, "tests": public,
+                                   "demos": shown, "tests": public,
                                    "entropy": _entropy(seed, mat.seed, label, cond, model.name,
                                                        b), **extra})
                     meta.append((label, mat.seed, cond, model.name, sl, items))
