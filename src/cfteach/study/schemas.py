@@ -9,6 +9,8 @@ from pydantic import BaseModel, ConfigDict, Field, StringConstraints
 from .texts import EDUCATION, GENDERS
 
 IdStr = Annotated[str, StringConstraints(max_length=64)]
+TOKEN_PATTERN = r"^[A-Za-z0-9_-]{43}$"  # what secrets.token_urlsafe(32) gives
+TokenStr = Annotated[str, StringConstraints(pattern=TOKEN_PATTERN)]
 Action = Literal["up", "down", "left", "right", "pickup", "dropoff"]
 Likert5 = Annotated[int, Field(ge=1, le=5)]
 
@@ -22,7 +24,7 @@ class SessionRequest(Strict):
     study_id: IdStr | None = None
     session_id: IdStr | None = None
     mode: Literal["live", "test", "preview"] | None = None
-    token: Annotated[str, StringConstraints(max_length=64)] | None = None
+    token: TokenStr | None = None
 
 
 class EventRequest(Strict):

@@ -27,6 +27,13 @@ from .texts import EDUCATION, GENDERS, LIKERT
 
 _PLACEHOLDER = re.compile(r"^\{\{?%.*%\}?\}$|^$")
 _ID_OK = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+TOKEN_BYTES = 32
+TOKEN_RE = re.compile(schemas.TOKEN_PATTERN)  # secrets.token_urlsafe(TOKEN_BYTES)
+
+
+def well_formed_token(token: str | None) -> bool:
+    """Whether `token` could be a session token at all (checked before any lookup)."""
+    return token is not None and TOKEN_RE.fullmatch(token) is not None
 
 
 class ApiError(Exception):
@@ -82,7 +89,7 @@ class StudyService:
             now = utcnow()
             cond, order, test_set = choose_cell(db, self.study, now, self._rng)
             row = Session(
-                participant_id=secrets.token_hex(8), token=secrets.token_urlsafe(32),
+                participant_id=secrets.token_hex(8), token=secrets.token_urlsafe(TOKEN_BYTES),
                 study_version=self.study["version"], pid_key=pid_key, prolific_pid=pid,
                 study_id=study_id, session_id=sess_id, condition=cond,
                 domain_order=";".join(order), test_set=test_set,
@@ -93,7 +100,7 @@ class StudyService:
         return row, False
 
     def _session(self, db: DBSession, token: str | None, *, lock: bool = False) -> Session:
-        if not token or len(token) > 64:
+        if not well_formed_token(token):
             raise ApiError(401, "no_session", "missing or malformed session token")
         q = select(Session).where(Session.token == token)
         if lock and self._pg:

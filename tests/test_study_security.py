@@ -1,0 +1,129 @@
+"""Hostile requests against the study server: session takeover with a known Prolific ID,
+bodies without a Content-Length, token floods and spoofed forwarding headers, control
+characters, look-alike content types. Database-facing tests run on SQLite and PostgreSQL."""
+
+from __future__ import annotations
+
+import uuid
+from pathlib import Path
+
+import httpx
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import func, select
+
+import test_study_support
+from cfteach.study.livesrv import running, serving_process
+from cfteach.study.models import Event, Session
+from cfteach.study.server import create_app
+
+db_url = test_study_support.db_url
+toy_study = test_study_support.toy_study
+
+PARAMS = {"prolific_pid": "5f1c0ffee0ddba11c0ffee00", "study_id": "S1", "session_id": "X1"}
+CONSENT = {"adult": True, "read": True, "agree": True}
+
+
+@pytest.fixture
+def app(toy_study: Path, db_url: str):  # noqa: ANN201
+    app = create_app(toy_study, db_url, researcher_token="research-token", seed=3)
+    yield app
+    app.state.service.engine.dispose()
+
+
+@pytest.fixture
+def client(app) -> TestClient:  # noqa: ANN001
+    with TestClient(app) as c:
+        yield c
+
+
+def _event(c: TestClient, token: str, step: int, type_: str, payload: dict | None = None):  # noqa: ANN202
+    return c.post("/api/event", headers={"X-Session-Token": token}, json={
+        "event_id": uuid.uuid4().hex, "step_index": step, "type": type_,
+        "payload": payload or {}})
+
+
+def _counts(app) -> tuple[int, int]:  # noqa: ANN001
+    with app.state.service.Session() as db:
+        return (db.scalar(select(func.count()).select_from(Session)),
+                db.scalar(select(func.count()).select_from(Event)))
+
+
+# -- 5. rate limits: malformed tokens, failed authentications, forwarded addresses -----------
+
+@pytest.fixture(scope="module")
+def served(toy_study: Path, tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201
+    """`cfteach serve` in its own process, with its default proxy settings."""
+    db = f"sqlite:///{tmp_path_factory.mktemp('served') / 's.db'}"
+    with serving_process(toy_study, "--db", db, "--sessions-per-minute", "3") as (base, proc):
+        yield base, proc
+
+
+def test_default_serve_trusts_no_forwarded_header(served) -> None:  # noqa: ANN001
+    """`cfteach serve` on loopback: a rotating X-Forwarded-For does not make new clients."""
+    base, _ = served
+    codes = [httpx.post(base + "/api/session", json={"prolific_pid": f"fw{i}"},
+                        headers={"X-Forwarded-For": f"10.0.0.{i}"}).status_code
+             for i in range(6)]
+    assert codes[:3] == [200, 200, 200] and codes[3:] == [429, 429, 429]
+
+
+def test_forwarded_header_from_a_named_proxy_is_used(toy_study: Path, tmp_path: Path) -> None:
+    app = create_app(toy_study, f"sqlite:///{tmp_path / 'p.db'}", sessions_per_minute=1)
+    with running(app, forwarded_allow_ips="127.0.0.1") as base:
+        codes = [httpx.post(base + "/api/session", json={"prolific_pid": f"px{i}"},
+                            headers={"X-Forwarded-For": f"10.0.0.{i % 2}"}).status_code
+                 for i in range(4)]
+    assert codes == [200, 200, 429, 429]  # one each for 10.0.0.0 and 10.0.0.1
+    app.state.service.engine.dispose()
+
+
+def test_malformed_tokens_are_refused_before_lookup_and_not_stored(toy_study: Path,
+                                                                    tmp_path: Path) -> None:
+    app = create_app(toy_study, f"sqlite:///{tmp_path / 't.db'}", auth_failures_per_minute=0)
+    limits = app.state.limits
+    with TestClient(app) as c:
+        for i in range(50):
+            r = _event(c, f"{i:05d}" + "x" * 15_000, 0, "continue")
+            assert r.status_code == 401 and r.json()["error"] == "no_session"
+        assert len(limits["events"]) == 0  # nothing was keyed by those tokens
+        r = c.get("/api/state", headers={"X-Session-Token": "a" * 42 + "\x00"})
+        assert r.status_code == 401
+        assert c.get("/researcher", params={"token": "caf\u00e9"}).status_code == 403
+    app.state.service.engine.dispose()
+
+
+def test_failed_authentications_are_limited_per_address(toy_study: Path,
+                                                        tmp_path: Path) -> None:
+    app = create_app(toy_study, f"sqlite:///{tmp_path / 'a.db'}", auth_failures_per_minute=5)
+    with TestClient(app) as c:
+        good = c.post("/api/session", json=PARAMS).json()["token"]
+        unknown = "A" * 43  # well formed, no such session
+        codes = [_event(c, unknown, 0, "continue").status_code for _ in range(3)]
+        codes += [c.get("/api/state", headers={"X-Session-Token": "bad"}).status_code]
+        codes += [c.get("/api/researcher/progress",
+                        headers={"X-Researcher-Token": "guess"}).status_code]
+        assert codes == [401, 401, 401, 401, 403]
+        # Now the address is over its limit: refused before any lookup, valid token or not.
+        assert _event(c, unknown, 0, "continue").status_code == 429
+        r = c.get("/api/state", headers={"X-Session-Token": good})
+        assert r.status_code == 429 and r.json()["error"] == "rate_limited"
+        assert c.post("/api/session", json={**PARAMS, "session_id": "X2"}).status_code == 429
+    assert len(app.state.limits["auth"]) == 1
+    app.state.service.engine.dispose()
+
+
+def test_rate_limiter_memory_is_bounded() -> None:
+    from cfteach.study.ratelimit import RateLimiter
+
+    lim = RateLimiter(3, window=10, max_keys=100)
+    for i in range(1000):
+        assert lim.allow(f"k{i}", now=1.0)
+    assert len(lim) <= 100
+    lim.hit("x", now=1.0)
+    assert not lim.blocked("x", now=1.0)
+    for _ in range(10):
+        lim.hit("x", now=2.0)
+    assert lim.blocked("x", now=2.0) and not lim.blocked("x", now=12.5)
+
+
