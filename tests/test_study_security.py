@@ -4,6 +4,7 @@ characters, look-alike content types. Database-facing tests run on SQLite and Po
 
 from __future__ import annotations
 
+import json
 import uuid
 from pathlib import Path
 
@@ -15,13 +16,13 @@ from sqlalchemy import func, select
 import test_study_support
 from cfteach.study.livesrv import running, serving_process
 from cfteach.study.models import Event, Session
+from cfteach.study.probe import peak_rss_mb, post_chunked
 from cfteach.study.server import create_app
 
 db_url = test_study_support.db_url
 toy_study = test_study_support.toy_study
 
 PARAMS = {"prolific_pid": "5f1c0ffee0ddba11c0ffee00", "study_id": "S1", "session_id": "X1"}
-CONSENT = {"adult": True, "read": True, "agree": True}
 
 
 @pytest.fixture
@@ -49,7 +50,22 @@ def _counts(app) -> tuple[int, int]:  # noqa: ANN001
                 db.scalar(select(func.count()).select_from(Event)))
 
 
-# -- 5. rate limits: malformed tokens, failed authentications, forwarded addresses -----------
+# -- 2. bodies without a Content-Length are counted while they stream -----------------------
+
+def test_chunked_body_is_refused_before_it_ends(toy_study: Path, tmp_path: Path) -> None:
+    """A chunked body that never ends gets 413 once past 64 KiB: the server must not wait
+    for (and hold) the whole body. A small chunked body still works."""
+    app = create_app(toy_study, f"sqlite:///{tmp_path / 'c.db'}")
+    with running(app) as base:
+        port = int(base.rsplit(":", 1)[1])
+        r = post_chunked("127.0.0.1", port, "/api/event", 1024 * 1024, finish=False,
+                         timeout=15)
+        assert r.status == 413, r.response[:200]
+        assert b'"too_large"' in r.response
+        r = post_chunked("127.0.0.1", port, "/api/session", 300 * 1024, content_type="text/plain")
+        assert r.status == 415
+    app.state.service.engine.dispose()
+
 
 @pytest.fixture(scope="module")
 def served(toy_study: Path, tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201
@@ -58,6 +74,20 @@ def served(toy_study: Path, tmp_path_factory: pytest.TempPathFactory):  # noqa: 
     with serving_process(toy_study, "--db", db, "--sessions-per-minute", "3") as (base, proc):
         yield base, proc
 
+
+def test_chunked_40_mb_body_does_not_grow_the_server(served) -> None:  # noqa: ANN001
+    base, proc = served
+    port = int(base.rsplit(":", 1)[1])
+    assert httpx.get(base + "/").status_code == 200
+    before = peak_rss_mb(proc.pid)
+    r = post_chunked("127.0.0.1", port, "/api/event", 40 * 1024 * 1024, timeout=60)
+    after = peak_rss_mb(proc.pid)
+    assert r.status == 413
+    assert after - before < 20, f"peak RSS {before:.0f} -> {after:.0f} MiB"
+    assert httpx.get(base + "/").status_code == 200  # still serving
+
+
+# -- 5. rate limits: malformed tokens, failed authentications, forwarded addresses -----------
 
 def test_default_serve_trusts_no_forwarded_header(served) -> None:  # noqa: ANN001
     """`cfteach serve` on loopback: a rotating X-Forwarded-For does not make new clients."""
@@ -125,5 +155,19 @@ def test_rate_limiter_memory_is_bounded() -> None:
     for _ in range(10):
         lim.hit("x", now=2.0)
     assert lim.blocked("x", now=2.0) and not lim.blocked("x", now=12.5)
+
+
+# -- 7. look-alike content types ---------------------------------------------------------------
+
+def test_only_application_json_is_accepted(client: TestClient) -> None:
+    body = json.dumps(PARAMS)
+    for ctype in ("application/jsonfoo", "application/json-patch", "text/json",
+                  "application/x-www-form-urlencoded", "", "application/jsonp; charset=utf-8"):
+        r = client.post("/api/session", content=body, headers={"Content-Type": ctype})
+        assert r.status_code == 415, (ctype, r.status_code)
+        assert r.json()["error"] == "json_only"
+    for ctype in ("application/json", "application/json; charset=utf-8", "Application/JSON"):
+        r = client.post("/api/session", content=body, headers={"Content-Type": ctype})
+        assert r.status_code == 200, (ctype, r.text)
 
 

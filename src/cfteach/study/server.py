@@ -11,42 +11,17 @@ from fastapi import FastAPI, Header, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
-from starlette.middleware.base import BaseHTTPMiddleware
 
 from . import schemas
 from .config import load_study
 from .db import make_engine, upgrade
+from .guard import Guard
 from .ratelimit import RateLimiter
 from .service import ApiError, StudyService, well_formed_token
 
 HERE = Path(__file__).parent
-MAX_BODY = 64 * 1024
-CSP = ("default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'; "
-       "connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'self'")
 # Refusals that mean "you did not prove who you are": counted per client address.
 AUTH_FAILURES = {"no_session", "forbidden"}
-
-
-class _Limits(BaseHTTPMiddleware):
-    """Body size cap and security headers on every response."""
-
-    async def dispatch(self, request: Request, call_next):  # noqa: ANN001, ANN201
-        if request.method in ("POST", "PUT", "PATCH"):
-            ctype = request.headers.get("content-type", "")
-            if request.url.path.startswith("/api/") and not ctype.startswith("application/json"):
-                return _err(415, "json_only", "send the body as application/json")
-            declared = request.headers.get("content-length")
-            if declared is not None and (not declared.isdigit() or int(declared) > MAX_BODY):
-                return _err(413, "too_large", f"request body over {MAX_BODY} bytes")
-            body = await request.body()
-            if len(body) > MAX_BODY:
-                return _err(413, "too_large", f"request body over {MAX_BODY} bytes")
-        response = await call_next(request)
-        response.headers["Content-Security-Policy"] = CSP
-        response.headers["X-Content-Type-Options"] = "nosniff"
-        response.headers["Referrer-Policy"] = "no-referrer"
-        response.headers["Cache-Control"] = "no-store"
-        return response
 
 
 def _err(status: int, code: str, message: str) -> JSONResponse:
@@ -79,7 +54,7 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     app.state.service = service
     app.state.researcher_token = token
     app.state.limits = {"sessions": session_limit, "events": event_limit, "auth": auth_limit}
-    app.add_middleware(_Limits)
+    app.add_middleware(Guard)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
     page = (HERE / "templates" / "index.html").read_text()
 
