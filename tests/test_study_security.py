@@ -14,6 +14,7 @@ from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
 import test_study_support
+from cfteach.study.bot import run_participant
 from cfteach.study.livesrv import running, serving_process
 from cfteach.study.models import Event, Session
 from cfteach.study.probe import peak_rss_mb, post_chunked
@@ -155,6 +156,37 @@ def test_rate_limiter_memory_is_bounded() -> None:
     for _ in range(10):
         lim.hit("x", now=2.0)
     assert lim.blocked("x", now=2.0) and not lim.blocked("x", now=12.5)
+
+
+# -- 6. control characters are refused in validation, on both databases ---------------------
+
+def test_control_characters_get_422_on_every_database(client: TestClient) -> None:
+    for field in ("prolific_pid", "study_id", "session_id"):
+        r = client.post("/api/session", json={**PARAMS, field: "ab\x00cd"})
+        assert r.status_code == 422, (field, r.text)
+        assert "control characters" in r.json()["detail"]
+    pv = client.post("/api/session", json={"prolific_pid": "{{%PROLIFIC\x00PID%}}"})
+    assert pv.status_code == 422
+    assert client.post("/api/session", json={"token": "a" * 42 + "\x00"}).status_code == 422
+    tok = client.post("/api/session", json={**PARAMS, "prolific_pid": "ctrl01"}).json()["token"]
+    while (st := client.get("/api/state", headers={"X-Session-Token": tok}).json())[
+            "step"]["kind"] != "survey":
+        run_participant(client, None, token=tok, stop_after=1)
+    i = st["step_index"]
+    likert = {"informativeness": 3, "mental_effort": 2}
+    for bad in ("nul\x00here", "bell\x07", "esc\x1b[31m", "c1\x85"):
+        r = _event(client, tok, i, "likert", {**likert, "comment": bad})
+        assert r.status_code == 422, (bad, r.text)
+    r = client.post("/api/event", headers={"X-Session-Token": tok,
+                                           "Content-Type": "application/json"},
+                    content=b'{"event_id": "%s", "step_index": %d, "type": "likert", '
+                            b'"payload": {"informativeness": 3, "mental_effort": 2, '
+                            b'"comment": "\\ud800"}}' % (uuid.uuid4().hex.encode(), i))
+    assert r.status_code == 422
+    assert _event(client, tok, i, "lik\x00ert", likert).status_code == 422
+    assert client.get("/api/state", headers={"X-Session-Token": tok}).json()["step_index"] == i
+    r = _event(client, tok, i, "likert", {**likert, "comment": "two\nlines\tand a tab"})
+    assert r.status_code == 200, r.text
 
 
 # -- 7. look-alike content types ---------------------------------------------------------------
