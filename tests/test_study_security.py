@@ -51,6 +51,44 @@ def _counts(app) -> tuple[int, int]:  # noqa: ANN001
                 db.scalar(select(func.count()).select_from(Event)))
 
 
+# -- 1. resuming a session needs proof, not just the Prolific ID ------------------------------
+
+def test_known_pid_without_proof_gets_no_token_and_changes_nothing(client: TestClient,
+                                                                   app) -> None:  # noqa: ANN001
+    out = run_participant(client, PARAMS, stop_after=3)  # consent..free play: at practice
+    tok = out["token"]
+    before = client.get("/api/state", headers={"X-Session-Token": tok}).json()
+    counts = _counts(app)
+    other_token = client.post("/api/session", json={"prolific_pid": "someone2",
+                                                    "session_id": "Y1"}).json()["token"]
+    for attempt in ({**PARAMS, "session_id": "X2"},          # another Prolific session
+                    {**PARAMS, "session_id": None},          # no SESSION_ID at all
+                    {"prolific_pid": PARAMS["prolific_pid"], "study_id": "S1",
+                     "token": other_token},                  # someone else's token
+                    {**PARAMS, "session_id": "{{%SESSION_ID%}}"}):  # placeholder
+        r = client.post("/api/session", json=attempt)
+        assert r.status_code == 409, (attempt, r.text)
+        body = r.json()
+        assert body["error"] == "session_elsewhere" and "token" not in body
+        assert "already in progress in another browser" in body["detail"]
+    assert _counts(app) == (counts[0] + 1, counts[1])  # only someone2's new session
+    assert client.get("/api/state", headers={"X-Session-Token": tok}).json() == before
+    assert before["step"]["kind"] == "practice" and before["status"] == "in_progress"
+    # The real participant still resumes: with the same SESSION_ID, or with the token.
+    assert client.post("/api/session", json=PARAMS).json()["token"] == tok
+    r = client.post("/api/session", json={**PARAMS, "session_id": "X9", "token": tok})
+    assert r.status_code == 200 and r.json()["token"] == tok and r.json()["resumed"]
+
+
+def test_session_started_without_session_id_resumes_only_with_its_token(
+        client: TestClient) -> None:
+    params = {"prolific_pid": "nosession01", "study_id": "S1"}
+    tok = client.post("/api/session", json=params).json()["token"]
+    assert client.post("/api/session", json=params).status_code == 409
+    assert client.post("/api/session", json={**params, "session_id": "Z"}).status_code == 409
+    assert client.post("/api/session", json={**params, "token": tok}).json()["token"] == tok
+
+
 # -- 2. bodies without a Content-Length are counted while they stream -----------------------
 
 def test_chunked_body_is_refused_before_it_ends(toy_study: Path, tmp_path: Path) -> None:
@@ -203,3 +241,26 @@ def test_only_application_json_is_accepted(client: TestClient) -> None:
         assert r.status_code == 200, (ctype, r.text)
 
 
+# -- 1, in the browser: the page says so -------------------------------------------------------
+
+@pytest.mark.browser
+def test_browser_shows_already_in_progress_page(toy_study: Path, tmp_path: Path) -> None:
+    playwright = pytest.importorskip("playwright.sync_api")
+    from cfteach.study.screenshots import ARGS, CHROMIUM
+
+    app = create_app(toy_study, f"sqlite:///{tmp_path / 'b.db'}")
+    pid = "60aa0bb0cc0dd0ee0ff00999"
+    with running(app) as base, playwright.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        first = browser.new_context().new_page()
+        first.goto(f"{base}/?PROLIFIC_PID={pid}&STUDY_ID=st1&SESSION_ID=se1")
+        first.wait_for_selector("main[data-step='consent']")
+        other = browser.new_context().new_page()  # another browser, another Prolific session
+        other.goto(f"{base}/?PROLIFIC_PID={pid}&STUDY_ID=st1&SESSION_ID=se2")
+        other.wait_for_selector("main[data-step='elsewhere']")
+        assert "already in progress in another browser" in other.inner_text("#elsewhere")
+        assert other.evaluate("sessionStorage.getItem('cfteach-token')") is None
+        first.reload()  # the first browser still resumes (its token, its SESSION_ID)
+        first.wait_for_selector("main[data-step='consent']")
+        browser.close()
+    app.state.service.engine.dispose()

@@ -21,7 +21,7 @@ from .service import ApiError, StudyService, well_formed_token
 
 HERE = Path(__file__).parent
 # Refusals that mean "you did not prove who you are": counted per client address.
-AUTH_FAILURES = {"no_session", "forbidden"}
+AUTH_FAILURES = {"no_session", "session_elsewhere", "forbidden"}
 
 
 def _err(status: int, code: str, message: str) -> JSONResponse:
