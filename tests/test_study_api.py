@@ -147,7 +147,11 @@ def test_reload_state_is_stable_and_events_are_counted(client: TestClient) -> No
 
 def test_prolific_resume_preview_and_bad_ids(client: TestClient) -> None:
     first = client.post("/api/session", json=PARAMS).json()
-    again = client.post("/api/session", json={**PARAMS, "session_id": "X2"}).json()
+    # The same Prolific SESSION_ID (the same link, any browser) resumes; so does the token.
+    again = client.post("/api/session", json=PARAMS).json()
+    assert again["token"] == first["token"] and again["resumed"] is True
+    again = client.post("/api/session", json={**PARAMS, "session_id": None,
+                                              "token": first["token"]}).json()
     assert again["token"] == first["token"] and again["resumed"] is True
     other = client.post("/api/session", json={**PARAMS, "prolific_pid": "another1"}).json()
     assert other["token"] != first["token"]

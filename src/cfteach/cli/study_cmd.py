@@ -151,23 +151,31 @@ def serve(
                                             "minute (0 = no limit)."),
     events_per_minute: int = typer.Option(600, help="Events per session per minute "
                                           "(0 = no limit)."),
+    auth_failures_per_minute: int = typer.Option(
+        60, help="Failed authentications (unknown or malformed session tokens, resumes "
+        "without proof) per client address per minute before that address gets 429 "
+        "(0 = no limit)."),
     forwarded_allow_ips: str = typer.Option(
-        "127.0.0.1", help="Reverse proxies whose X-Forwarded-For is trusted (comma-separated, "
-        "'*' = any), so rate limits see participants' addresses, not the proxy's."),
+        "", help="Reverse proxies whose X-Forwarded-For is trusted (comma-separated addresses "
+        "or networks, '*' = any; default: none, not even loopback), so rate limits see "
+        "participants' addresses, not the proxy's."),
 ) -> None:
     """Run the study server (participants open /?PROLIFIC_PID=...&STUDY_ID=...&SESSION_ID=...)."""
     import secrets
 
     import uvicorn
 
+    from cfteach.study.livesrv import server_config
     from cfteach.study.server import create_app
 
     token = researcher_token or secrets.token_urlsafe(16)
     app = create_app(study, db, researcher_token=token, sessions_per_minute=sessions_per_minute,
-                     events_per_minute=events_per_minute)
+                     events_per_minute=events_per_minute,
+                     auth_failures_per_minute=auth_failures_per_minute)
     typer.echo(f"researcher page: http://{host}:{port}/researcher?token={token}", err=True)
-    uvicorn.run(app, host=host, port=port, log_level=os.environ.get("CFTEACH_LOG", "info"),
-                access_log=False, proxy_headers=True, forwarded_allow_ips=forwarded_allow_ips)
+    config = server_config(app, host=host, port=port, forwarded_allow_ips=forwarded_allow_ips,
+                           log_level=os.environ.get("CFTEACH_LOG", "info"))
+    uvicorn.Server(config).run()
 
 
 def register(app: typer.Typer) -> None:

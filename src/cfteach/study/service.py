@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hmac
 import random
 import re
 import secrets
@@ -27,6 +28,15 @@ from .texts import EDUCATION, GENDERS, LIKERT
 
 _PLACEHOLDER = re.compile(r"^\{\{?%.*%\}?\}$|^$")
 _ID_OK = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+TOKEN_BYTES = 32
+TOKEN_RE = re.compile(schemas.TOKEN_PATTERN)  # secrets.token_urlsafe(TOKEN_BYTES)
+ELSEWHERE = ("This study is already in progress in another browser. Please continue it "
+             "there (the browser and tab you started it in).")
+
+
+def well_formed_token(token: str | None) -> bool:
+    """Whether `token` could be a session token at all (checked before any lookup)."""
+    return token is not None and TOKEN_RE.fullmatch(token) is not None
 
 
 class ApiError(Exception):
@@ -55,7 +65,12 @@ class StudyService:
     # -- sessions -------------------------------------------------------------------------
 
     def start(self, req: schemas.SessionRequest) -> tuple[Session, bool]:
-        """Resume the participant's session (by Prolific PID, else by token) or assign one."""
+        """Resume the participant's session or assign one.
+
+        A Prolific PID that already has a session resumes it only with proof: the session's
+        token (stored by the browser that started it) or the Prolific SESSION_ID it started
+        with. Knowing a PID alone gets 409 `session_elsewhere` and changes nothing.
+        """
         pid = req.prolific_pid
         for name, value in (("PROLIFIC_PID", pid), ("STUDY_ID", req.study_id),
                             ("SESSION_ID", req.session_id)):
@@ -74,7 +89,9 @@ class StudyService:
             if pid_key:
                 row = db.scalar(select(Session).where(Session.pid_key == pid_key))
                 if row is not None:
-                    return row, True
+                    if _proves(row, req.token, sess_id):
+                        return row, True
+                    raise ApiError(409, "session_elsewhere", ELSEWHERE)
             elif req.token:
                 row = db.scalar(select(Session).where(Session.token == req.token))
                 if row is not None and row.is_preview and row.prolific_pid == pid:
@@ -82,7 +99,7 @@ class StudyService:
             now = utcnow()
             cond, order, test_set = choose_cell(db, self.study, now, self._rng)
             row = Session(
-                participant_id=secrets.token_hex(8), token=secrets.token_urlsafe(32),
+                participant_id=secrets.token_hex(8), token=secrets.token_urlsafe(TOKEN_BYTES),
                 study_version=self.study["version"], pid_key=pid_key, prolific_pid=pid,
                 study_id=study_id, session_id=sess_id, condition=cond,
                 domain_order=";".join(order), test_set=test_set,
@@ -93,7 +110,7 @@ class StudyService:
         return row, False
 
     def _session(self, db: DBSession, token: str | None, *, lock: bool = False) -> Session:
-        if not token or len(token) > 64:
+        if not well_formed_token(token):
             raise ApiError(401, "no_session", "missing or malformed session token")
         q = select(Session).where(Session.token == token)
         if lock and self._pg:
@@ -318,6 +335,14 @@ class StudyService:
                  for (c, o, t) in all_cells(self.study)]
         return {"study_version": self.study["version"], "status": status,
                 "previews": previews, "cells": cells}
+
+
+def _proves(row: Session, token: str | None, session_id: str | None) -> bool:
+    """Whether the request shows it comes from whoever started `row` (constant-time)."""
+    if token and hmac.compare_digest(token.encode(), row.token.encode()):
+        return True
+    return bool(session_id and row.session_id
+                and hmac.compare_digest(session_id.encode(), row.session_id.encode()))
 
 
 def _public_info(info: dict) -> dict:

@@ -616,11 +616,20 @@ async function refresh() {
   render(r.data);
 }
 
+// The PID already has a session and this browser cannot prove it is the one that started
+// it (no stored token, another Prolific SESSION_ID): the server sent no token.
+function showElsewhere(detail) {
+  app.dataset.step = "elsewhere";
+  app.replaceChildren(h("h1", { text: "Study already in progress" }), h("p", { id: "elsewhere",
+    text: detail || "This study is already in progress in another browser." }));
+}
+
 async function main() {
   const q = new URLSearchParams(window.location.search);
   const body = { prolific_pid: q.get("PROLIFIC_PID"), study_id: q.get("STUDY_ID"),
     session_id: q.get("SESSION_ID"), mode: q.get("mode"), token };
   const r = await api("POST", "/api/session", body);
+  if (r.status === 409 && r.data.error === "session_elsewhere") { showElsewhere(r.data.detail); return; }
   if (r.status !== 200) { showError(r.data.detail || "Could not start the study."); return; }
   token = r.data.token;
   sessionStorage.setItem("cfteach-token", token);
