@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from typer.testing import CliRunner
 
 from cfteach.cli import app
 from cfteach.simulate.summary import regret_table
 from cfteach.simulate.sweep import run_sweep
+from cli_runner import WideRunner
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +76,7 @@ def test_regret_table_against_a_hand_computation():
 
 
 def test_cli_rejects_bad_teacher_settings_before_work(tmp_path: Path):
-    res = CliRunner().invoke(app, ["simulate", "-d", "skateboard", "-c", "closed_loop",
+    res = WideRunner().invoke(app, ["simulate", "-d", "skateboard", "-c", "closed_loop",
                                    "--teacher", "max_items=0", "--out", str(tmp_path)])
     assert res.exit_code == 2
     assert "max_items" in " ".join(res.output.split())
@@ -84,7 +84,7 @@ def test_cli_rejects_bad_teacher_settings_before_work(tmp_path: Path):
 
 
 def test_teach_names_closed_loop(tmp_path: Path):
-    res = CliRunner().invoke(app, ["teach", "skateboard", "--condition", "closed_loop"])
+    res = WideRunner().invoke(app, ["teach", "skateboard", "--condition", "closed_loop"])
     assert res.exit_code != 0
     assert "no fixed curriculum" in " ".join(res.output.split())
 
