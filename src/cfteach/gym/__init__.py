@@ -69,7 +69,9 @@ def make(
         render_mode=render_mode, max_steps=max_steps, cell_px=cell_px,
         observation=observation, max_episode_steps=max_steps, disable_env_checker=True,
     )
-    return env.unwrapped  # type: ignore[return-value]
+    base = env.unwrapped
+    base.spec = env.spec  # the outer spec also records max_episode_steps
+    return base  # type: ignore[return-value]
 
 
 def register_envs() -> None:

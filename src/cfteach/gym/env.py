@@ -168,16 +168,9 @@ class GridEnv(gymnasium.Env):
         return list(self.action_meanings)
 
     def get_keys_to_action(self) -> dict[tuple[Any, ...], int]:
-        """Keys for `gymnasium.utils.play.play`: the study's arrows, `p` and `d`; actions a
-        user domain adds beyond those get the digit keys 1, 2, ... in action order."""
-        out: dict[tuple[Any, ...], int] = {}
-        extra = 1
-        for i, name in enumerate(self.action_meanings):
-            key = STUDY_KEYS.get(name)
-            if key is None:
-                key, extra = str(extra % 10), extra + 1
-            out[(key,)] = i
-        return out
+        """Keys for `gymnasium.utils.play.play`: the study's arrows, `p` and `d`, each bound
+        to its action's index (user domains may list fewer actions or another order)."""
+        return {(STUDY_KEYS[name],): i for i, name in enumerate(self.action_meanings)}
 
     @property
     def P(self) -> dict[int, dict[int, list[tuple[float, int, float, bool]]]]:  # noqa: N802
