@@ -119,7 +119,7 @@ def test_curriculum_demonstrations_replay_to_their_rewards():
     src = preview_sources(["delivery"], demos=3)[0]
     dom = src.domain
     eps = []
-    for cond, cur in src.curricula.items():
+    for cur in src.curricula.values():
         eps += ecosystem.curriculum_episodes(dom, cur)
         assert [e.total_reward for e in eps[-3:]] == pytest.approx(
             [d["reward"] for d in cur["demos"]], abs=1e-9)
