@@ -211,3 +211,24 @@ def test_cli_errors_are_one_line(args, message, tmp_path):
     assert code == 2
     assert message in out and "Traceback" not in out
     assert len([line for line in out.splitlines() if line.startswith("Error:")]) == 1
+
+
+def test_a_reader_recovers_the_environment_without_importing_cfteach(tmp_path):
+    import subprocess
+    import sys
+
+    dom = domains.load("skateboard")
+    ecosystem.write_dataset(ecosystem.candidate_episodes(dom, env_indices=[6])[:4],
+                            "cfteach/skateboard/r-v0", dom)
+    code = ("import sys, minari\n"
+            "ds = minari.load_dataset('cfteach/skateboard/r-v0')\n"
+            "print('cfteach' in sys.modules)\n"
+            "env = ds.recover_environment()\n"
+            "ep = ds[0]\n"
+            "meta = next(iter(ds.storage.get_episode_metadata([0])))\n"
+            "obs, _ = env.reset(options=meta['options'])\n"
+            "print(env.spec.id, (obs == ep.observations[0]).all())\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["False", "cfteach/Skateboard-v0", "True"]
