@@ -106,6 +106,24 @@ def test_answers_carry_no_prolific_ids(study):
     assert not any(s.encode() in data for s in secret)
 
 
+def test_answers_keep_the_client_clock_when_the_export_has_it(study, tmp_path):
+    study_dir, export = study
+    newer = tmp_path / "export"
+    newer.mkdir()
+    (newer / "participants.csv").write_bytes((export / "participants.csv").read_bytes())
+    with open(export / "test_responses.csv", newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    with open(newer / "test_responses.csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, [*rows[0], "client_time_ms"])
+        w.writeheader()
+        w.writerows({**r, "client_time_ms": 1000 + i} for i, r in enumerate(rows))
+    eps = ecosystem.answer_episodes(domains.load("skateboard"), study_dir, newer)
+    want = [1000 + i for i, r in enumerate(rows) if r["domain"] == "skateboard"]
+    assert [e.metadata["client_time_ms"] for e in eps] == want
+    eps = ecosystem.answer_episodes(domains.load("skateboard"), study_dir, export)
+    assert "client_time_ms" not in eps[0].metadata
+
+
 def test_answers_from_another_study_folder_are_refused(study, tmp_path):
     _, export = study
     other = _bot_study(tmp_path / "other", seed=1)[0]

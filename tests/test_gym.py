@@ -174,6 +174,9 @@ def test_user_domains_get_environments_and_generic_pictures():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped)
+        check_env(cgym.make(dom, "random", observation="state", render_mode="ansi"))
+        check_env(gymnasium.make(cgym.ENV_ID, domain=dom).unwrapped)  # no env_code: first
+    assert cgym.state_space_nvec(dom) == [2, 2, 5, 3, 5, 3, 2, 2]  # bits, agent, key, coin
     env = cgym.make(dom, "11", render_mode="ansi")
     env.reset()
     rows = env.render().strip().splitlines()[1:-1]

@@ -172,6 +172,8 @@ def answer_episodes(domain: Any, study_dir: str | Path, export_dir: str | Path, 
                 "trial_index": _int(r["trial_index"]), "optimal": _int(r["optimal"]),
                 "optimal_reward": float(r["optimal_reward"]), "time_ms": _int(r["time_ms"]),
                 "confidence": _int(r["confidence"]), "env_index": test.env_index}
+        if "client_time_ms" in r:  # newer exports: the page's own clock as well
+            meta["client_time_ms"] = _int(r["client_time_ms"])
         ep = play(env, test.env_code, test.start_state, acts, meta, what)
         _agree(ep.total_reward, r.get("reward"), what)
         out.append(ep)
