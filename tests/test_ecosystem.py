@@ -41,7 +41,8 @@ def _bot_study(folder: Path, seed: int = 0) -> tuple[Path, Path]:
     with TestClient(create_app(folder / "study", db, researcher_token="t")) as client:
         for k in range(3):  # two play the tests optimally, one takes the shortest way
             run_participant(client, {"prolific_pid": f"5f1c0ffee0ddba11c0ffee{k:02d}",
-                                     "study_id": "S1", "session_id": f"X{k}"},
+                                     "study_id": "STUDY0c0ffee5f1", "session_id":
+                                     f"SESSION0ddba11{k}"},
                             study=study if k != 1 else None, rng=random.Random(k))
     export_csv(db, folder / "export")
     return folder / "study", folder / "export"

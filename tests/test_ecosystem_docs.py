@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 
 import pytest
-from typer.testing import CliRunner
+import typer
 
 from cfteach.cli import app
 from doc_examples import DOCS, code_blocks, run_script
@@ -84,8 +84,8 @@ def test_the_commands_shown_use_existing_options():
     text = DOC.read_text(encoding="utf-8")
     commands = re.findall(r"\$ cfteach export minari (\w+)((?:[^\n]|\\\n)*)", text)
     assert {c for c, _ in commands} == {"demos", "answers", "check"}
+    group = typer.main.get_command(app).commands["export"].commands["minari"]
     for sub, rest in commands:
-        helptext = CliRunner().invoke(app, ["export", "minari", sub, "--help"],
-                                      terminal_width=200).output
+        known = {o for p in group.commands[sub].params for o in (*p.opts, *p.secondary_opts)}
         for option in re.findall(r"--[\w-]+", rest):
-            assert option in helptext, (sub, option)
+            assert option in known, (sub, option)
