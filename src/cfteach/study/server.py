@@ -53,10 +53,12 @@ def _err(status: int, code: str, message: str) -> JSONResponse:
 
 def create_app(study_dir: str | Path, db_url: str | None = None, *,
                researcher_token: str | None = None, seed: int | None = None,
-               sessions_per_minute: int = 120, events_per_minute: int = 600) -> FastAPI:
+               sessions_per_minute: int = 120, events_per_minute: int = 600,
+               reports_per_minute: int = 60) -> FastAPI:
     """Build the server for one study folder; migrations run here, before serving.
 
-    Rate limits (0 = off): new sessions per client address, events per session, per minute.
+    Rate limits (0 = off): new sessions per client address, events per session, and error
+    reports from the page per client address (a made-up token must not lift it), per minute.
     """
     study = load_study(study_dir)
     if db_url is None:
@@ -67,6 +69,7 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     token = researcher_token or secrets.token_urlsafe(16)
     session_limit = RateLimiter(sessions_per_minute)
     event_limit = RateLimiter(events_per_minute)
+    report_limit = RateLimiter(reports_per_minute)
 
     app = FastAPI(title="cfteach study", docs_url=None, redoc_url=None, openapi_url=None)
     app.state.service = service
@@ -112,6 +115,14 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
         if not event_limit.allow(x_session_token or "?"):
             raise ApiError(429, "rate_limited", "too many events; slow down")
         return JSONResponse(service.post_event(x_session_token, req))
+
+    @app.post("/api/client-report")
+    def client_report(req: schemas.ClientReport, request: Request,
+                      x_session_token: str | None = Header(default=None)) -> JSONResponse:
+        addr = request.client.host if request.client else "?"
+        if not report_limit.allow(addr):
+            raise ApiError(429, "rate_limited", "too many reports; slow down")
+        return JSONResponse(service.report(x_session_token, req))
 
     def _check_researcher(given: str | None) -> None:
         if not given or not hmac.compare_digest(given, token):
