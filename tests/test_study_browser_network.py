@@ -238,3 +238,25 @@ def test_refused_requests_are_reported_and_explained_plainly(browser, toy_study:
     assert sent["payload"]["confidence"] == 4
     tests = _rows(out / "test_responses.csv")
     assert len(tests) == 18 and len({t["test_id"] for t in tests}) == 18
+
+
+def test_a_refused_session_start_is_reported_and_explained(browser, toy_study: Path,  # noqa: ANN001
+                                                           tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'start.db'}"
+    app = create_app(toy_study, db)
+    with running(app) as base:
+        page = browser.new_page()
+        with page.expect_response("**/api/client-report") as reported:
+            page.goto(f"{base}/?PROLIFIC_PID=not%20an%20id!&STUDY_ID=st1")  # 422 bad_parameter
+        assert reported.value.status == 200
+        assert page.text_content("#error") == ("The study link looks incomplete. Please open "
+                                               "it again from Prolific.")
+        assert "PROLIFIC_PID" not in page.text_content("main")
+        page.close()
+    out = tmp_path / "export"
+    export_csv(db, out)
+    app.state.service.engine.dispose()
+    (r,) = _rows(out / "client_reports.csv")
+    assert (r["participant_id"], r["path"], r["http_status"], r["error"]) == (
+        "", "/api/session", "422", "bad_parameter")
+    assert "PROLIFIC_PID" in r["detail"]

@@ -282,6 +282,7 @@ const pages = {
       keys: s.game.actions, energy: { start: s.start_energy, weights: s.weights },
       label: "practice game",
       onMove: (g) => {
+        if (!g.moves.length) msg.textContent = "";  // a new attempt: the last verdict goes
         info.textContent = `Current energy: ${Math.round(g.value)}%. Attempts remaining: ${left()}`;
         if (!g.ended && g.value <= 0) submit(g);
       },
@@ -319,7 +320,7 @@ const pages = {
       g.ended = true;
       g.banner = finished
         ? { lines: ["Not enough energy", `${energy}% left, ${target}% needed`], tone: "fail" }
-        : { lines: ["Out of energy", `task not done, ${target}% needed`], tone: "fail" };
+        : { lines: ["Out of energy", `${energy}% left, ${target}% needed`], tone: "fail" };
       g.draw();
       const what = finished
         ? `You completed the task with ${energy}% energy left, but you need to finish with ` +

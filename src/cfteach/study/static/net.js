@@ -120,8 +120,15 @@ async function deliver(ev) {
     await reportRefused(ev);
     return { ok: false, reported: true, status: ev.refused.status, ...ev.refused.data };
   }
-  const r = await request("POST", "/api/event", ev);
-  if (r.status === 200 && r.data.ok) {
+  let r = await request("POST", "/api/event", ev);
+  for (let attempt = 0; r.status === 200 && !r.data.ok; attempt++) {
+    // 200 but not the study server's answer (a captive portal, say): keep it and retry.
+    trouble(+1);
+    await sleep(backoffMs(attempt, null));
+    trouble(-1);
+    r = await request("POST", "/api/event", ev);
+  }
+  if (r.status === 200) {
     dropPending(ev.event_id);
     return r.data;
   }
