@@ -38,6 +38,13 @@ browser = test_study_browser.browser
 
 API = re.compile(r"^http://127\.0\.0\.1:\d+/api/")
 PROXY_PAGE = "<html><body><h1>502 Bad Gateway</h1><hr>nginx</body></html>"
+COUNT_STATUS_LINE = """document.addEventListener("DOMContentLoaded", () => {
+  const box = document.getElementById("net-status");
+  if (!box) return;  // Prolific's page, after the redirect
+  window.netStatusShown = 0;
+  new MutationObserver(() => { if (!box.hidden) window.netStatusShown += 1; })
+    .observe(box, { attributes: true });
+});"""
 
 
 class Faults:
@@ -96,6 +103,8 @@ class FlakyParticipant(Participant):
         self.armed_on: list[str] = []
         super().run(**kw)
         self.page.wait_for_selector("#net-status", state="hidden")
+        # The "connection interrupted" line came up for every failed step (and went away).
+        assert self.page.evaluate("window.netStatusShown") >= len(self.armed_on)
         token = self.page.evaluate("sessionStorage.getItem('cfteach-token')")
         left = self.page.evaluate(f"localStorage.getItem('cfteach-pending-{token}')")
         assert json.loads(left) == []  # nothing waits in the browser any more
@@ -108,6 +117,7 @@ def test_every_kind_of_page_survives_a_502_and_a_429(browser, toy_study: Path,  
 
     def prepare(page) -> None:  # noqa: ANN001
         holder["faults"] = Faults(page)
+        page.add_init_script(COUNT_STATUS_LINE)
         holder["faults"].arm("502-lost", "429")  # the session start itself
 
     def make(page, base: str, study: dict) -> FlakyParticipant:  # noqa: ANN001
@@ -240,8 +250,8 @@ def test_refused_requests_are_reported_and_explained_plainly(browser, toy_study:
     assert len(tests) == 18 and len({t["test_id"] for t in tests}) == 18
 
 
-def test_a_refused_session_start_is_reported_and_explained(browser, toy_study: Path,  # noqa: ANN001
-                                                           tmp_path: Path) -> None:
+def test_a_refused_session_start_and_an_oversized_event_are_reported(
+        browser, toy_study: Path, tmp_path: Path) -> None:  # noqa: ANN001
     db = f"sqlite:///{tmp_path / 'start.db'}"
     app = create_app(toy_study, db)
     with running(app) as base:
@@ -252,11 +262,20 @@ def test_a_refused_session_start_is_reported_and_explained(browser, toy_study: P
         assert page.text_content("#error") == ("The study link looks incomplete. Please open "
                                                "it again from Prolific.")
         assert "PROLIFIC_PID" not in page.text_content("main")
+        # An event too big for the server (413) is reported without its payload.
+        stored = page.evaluate("""async () => {
+            const net = await import("/static/net.js");
+            const ev = {type: "likert", step_index: 7, payload: {comment: "x".repeat(70000)}};
+            return net.report("/api/event", {status: 413, data: {error: "too_large"}}, ev);
+        }""")
+        assert stored is True
         page.close()
     out = tmp_path / "export"
     export_csv(db, out)
     app.state.service.engine.dispose()
-    (r,) = _rows(out / "client_reports.csv")
+    r, big = _rows(out / "client_reports.csv")
     assert (r["participant_id"], r["path"], r["http_status"], r["error"]) == (
         "", "/api/session", "422", "bad_parameter")
     assert "PROLIFIC_PID" in r["detail"]
+    assert (big["error"], big["event_type"], big["step_index"]) == ("too_large", "likert", "7")
+    assert json.loads(big["event"])["payload"]["too_large_to_report"] > 70000

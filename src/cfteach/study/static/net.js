@@ -105,6 +105,10 @@ export async function report(path, refused, event = null, reportId = null) {
     error: String(refused.data.error || "").slice(0, 64),
     detail: String(refused.data.detail || "").slice(0, 2000), event,
     client_ms: Math.round(performance.timeOrigin + performance.now()) };
+  const size = JSON.stringify(body).length;
+  if (size > 60_000) {  // an event too big for the server (413) is too big to report whole
+    body.event = { ...event, payload: { too_large_to_report: size } };
+  }
   const r = await request("POST", "/api/client-report", body);
   return r.status === 200;
 }
