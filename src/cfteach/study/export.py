@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 from collections import defaultdict
 from datetime import UTC, datetime
 from pathlib import Path
@@ -11,7 +12,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import sessionmaker
 
 from .db import make_engine
-from .models import Event, Session, TestResponse, aware
+from .models import ClientReport, Event, Session, TestResponse, aware
 
 COUNTERFACTUAL = {"counterfactual_only", "proposed"}
 FEATURE = {"feature_only", "proposed"}
@@ -71,6 +72,18 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("plays_completed", "int", "plays watched to the end"),
         ("replays", "int", "plays started beyond the first"),
         ("watch_ms", "int", "total time spent playing this demonstration"),
+    ],
+    "client_reports.csv": [
+        ("participant_id", "str", "see participants.csv; empty if the page had no valid "
+                                  "session"),
+        ("reported_at", "ISO 8601 UTC", "when the server stored the report"),
+        ("path", "str", "the refused request (/api/event, /api/session, /api/state)"),
+        ("http_status", "int", "the server's (or a proxy's) HTTP status"),
+        ("error", "str", "the server's error code (e.g. bad_moves, wrong_step)"),
+        ("detail", "str", "the server's message (never shown to the participant)"),
+        ("event_type", "str", "type of the refused event, if it was one"),
+        ("step_index", "int", "step the refused event was sent for"),
+        ("event", "JSON", "the refused event exactly as the page sent it"),
     ],
 }
 
@@ -145,6 +158,15 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
             s = by_pk[pk]
             rows["demo_views.csv"].append([s.participant_id, s.condition, dom, k, done,
                                            max(0, starts - 1), ms])
+        for r in db.scalars(select(ClientReport).order_by(ClientReport.id)):
+            s = by_pk.get(r.session_pk) if r.session_pk is not None else None
+            if r.session_pk is not None and s is None:
+                continue  # a preview's report (or one of a session left out)
+            ev = r.event if isinstance(r.event, dict) else {}
+            rows["client_reports.csv"].append([
+                s.participant_id if s else "", _iso(r.server_at), r.path, r.http_status,
+                r.error, r.detail, ev.get("type", ""), ev.get("step_index", ""),
+                "" if r.event is None else json.dumps(r.event, sort_keys=True)])
     counts = {}
     for name, cols in COLUMNS.items():
         with open(out / name, "w", newline="", encoding="utf-8") as f:

@@ -105,3 +105,24 @@ class TestResponse(Base):
     time_ms: Mapped[int] = mapped_column(Integer)
     server_ms: Mapped[int] = mapped_column(Integer)
     confidence: Mapped[int] = mapped_column(Integer)
+
+
+class ClientReport(Base):
+    """A request the server refused for good, as the participant's page reported it.
+
+    The page keeps a refused event until the server has stored it here, so no answer is lost
+    even when it could not be accepted (the researcher sees what was sent and why it failed).
+    """
+
+    __tablename__ = "client_reports"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    report_id: Mapped[str] = mapped_column(String(64), unique=True)
+    session_pk: Mapped[int | None] = mapped_column(ForeignKey("sessions.id"), index=True,
+                                                   nullable=True)
+    path: Mapped[str] = mapped_column(String(100))
+    http_status: Mapped[int] = mapped_column(Integer)
+    error: Mapped[str] = mapped_column(String(64))
+    detail: Mapped[str] = mapped_column(Text)
+    event: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    client_ms: Mapped[float | None] = mapped_column(Float, nullable=True)
+    server_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

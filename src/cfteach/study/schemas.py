@@ -65,6 +65,19 @@ class EventRequest(Strict):
     client_ms: Annotated[float, Field(ge=0, le=1e15)] | None = None
 
 
+class ClientReport(Strict):
+    """What the page sends when the server refused one of its requests for good."""
+
+    report_id: Annotated[str, StringConstraints(min_length=8, max_length=64,
+                                                pattern=r"^[A-Za-z0-9_-]+$")]
+    path: Annotated[str, StringConstraints(max_length=100)]
+    http_status: Annotated[int, Field(ge=0, le=599)]
+    error: Annotated[str, StringConstraints(max_length=64)] = ""
+    detail: Annotated[str, StringConstraints(max_length=2000)] = ""
+    event: dict | None = None  # the refused event as sent (kept even if it was malformed)
+    client_ms: Annotated[float, Field(ge=0, le=1e15)] | None = None
+
+
 class Empty(Strict):
     pass
 

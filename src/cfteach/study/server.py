@@ -31,12 +31,14 @@ def _err(status: int, code: str, message: str) -> JSONResponse:
 def create_app(study_dir: str | Path, db_url: str | None = None, *,
                researcher_token: str | None = None, seed: int | None = None,
                sessions_per_minute: int = 120, events_per_minute: int = 600,
-               auth_failures_per_minute: int = 60) -> FastAPI:
+               auth_failures_per_minute: int = 60,
+               reports_per_minute: int = 60) -> FastAPI:
     """Build the server for one study folder; migrations run here, before serving.
 
     Rate limits per minute (0 = off): new sessions per client address, events per session,
     failed authentications per client address (beyond it, the address gets 429 before any
-    token is looked up). The client address is the connection's, or the one a trusted proxy
+    token is looked up), error reports from the page per client address (a made-up token
+    must not lift it). The client address is the connection's, or the one a trusted proxy
     forwards (see `livesrv.server_config`).
     """
     study = load_study(study_dir)
@@ -49,11 +51,13 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     session_limit = RateLimiter(sessions_per_minute)
     event_limit = RateLimiter(events_per_minute)
     auth_limit = RateLimiter(auth_failures_per_minute)
+    report_limit = RateLimiter(reports_per_minute)
 
     app = FastAPI(title="cfteach study", docs_url=None, redoc_url=None, openapi_url=None)
     app.state.service = service
     app.state.researcher_token = token
-    app.state.limits = {"sessions": session_limit, "events": event_limit, "auth": auth_limit}
+    app.state.limits = {"sessions": session_limit, "events": event_limit, "auth": auth_limit,
+                        "reports": report_limit}
     app.add_middleware(Guard)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
     page = (HERE / "templates" / "index.html").read_text()
@@ -113,6 +117,16 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
         if not event_limit.allow(tok):
             raise ApiError(429, "rate_limited", "too many events; slow down")
         return JSONResponse(service.post_event(tok, req))
+
+    @app.post("/api/client-report")
+    def client_report(req: schemas.ClientReport, request: Request,
+                      x_session_token: str | None = Header(default=None)) -> JSONResponse:
+        if not report_limit.allow(_client(request)):
+            raise ApiError(429, "rate_limited", "too many reports; slow down")
+        # the session may be what failed: any token or none, but only a well-formed one is
+        # looked up
+        tok = x_session_token if well_formed_token(x_session_token) else None
+        return JSONResponse(service.report(tok, req))
 
     def _check_researcher(request: Request, given: str | None) -> None:
         _not_blocked(request)

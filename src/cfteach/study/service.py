@@ -22,7 +22,7 @@ from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .build import browser_game
 from .games import ScoringError, replay
-from .models import Event, Session, TestResponse, aware, utcnow
+from .models import ClientReport, Event, Session, TestResponse, aware, utcnow
 from .steps import ALLOWED, build_steps
 from .texts import EDUCATION, GENDERS, LIKERT
 
@@ -296,8 +296,8 @@ class StudyService:
         if not passed and row.practice_attempts >= self.study["practice_attempts"]:
             row.status = "screened_out"
             row.completed_at = utcnow()
-        return {"passed": passed, "energy": energy, "finished": score.finished,
-                "attempts_used": row.practice_attempts}
+        return {"passed": passed, "energy": energy, "target_energy": prac["target_energy"],
+                "finished": score.finished, "attempts_used": row.practice_attempts}
 
     def _score_test(self, db: DBSession, row: Session, step: dict, ev: Event,
                     p: schemas.TestAnswer, now: datetime) -> dict:
@@ -317,6 +317,27 @@ class StudyService:
             optimal_length=t["optimal_length"], time_ms=p.time_ms,
             server_ms=int((now - entered).total_seconds() * 1000), confidence=p.confidence))
         return {}
+
+    # -- problems reported by the page ----------------------------------------------------
+
+    def report(self, token: str | None, req: schemas.ClientReport) -> dict:
+        """Store a refused request the page reports (once per report id).
+
+        Accepted with any token, or none: the session may be the very thing that failed.
+        """
+        with self.Session() as db:
+            try:
+                with db.begin():
+                    pk = None
+                    if token and len(token) <= 64:
+                        pk = db.scalar(select(Session.id).where(Session.token == token))
+                    db.add(ClientReport(
+                        report_id=req.report_id, session_pk=pk, path=req.path,
+                        http_status=req.http_status, error=req.error, detail=req.detail,
+                        event=req.event, client_ms=req.client_ms, server_at=utcnow()))
+            except IntegrityError:
+                return {"ok": True, "duplicate": True}
+        return {"ok": True}
 
     # -- researcher -----------------------------------------------------------------------
 
