@@ -39,6 +39,7 @@ SCHEMA: dict[str, dict[str, tuple[object, bool]]] = {
         "age": ("int", False),
         "gender": ("str", False),
         "education": ("str", False),
+        "study_version": ("str", False),
     },
     "test_responses.csv": {
         "participant_id": ("str", True),
@@ -260,6 +261,7 @@ DESCRIPTIONS = {
     "optimal": "1 if reward equals the optimal reward (M1)",
     "optimal_length": "number of actions of the robot's optimal answer",
     "time_ms": "ms from the test being shown to its submission",
+    "study_version": "content hash of the study file the session ran on",
     "confidence": "confidence rating 1..5 (M4)",
     "item": "Likert item (M2 informativeness, M3 mental effort)",
     "value": "Likert rating 1..5",

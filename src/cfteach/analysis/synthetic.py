@@ -150,6 +150,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                 "age": int(np.clip(round(rng.normal(28.4, 9.5)), 18, 69)),
                 "gender": rng.choice(["male", "female", "non-binary"], p=[0.67, 0.32, 0.01]),
                 "education": rng.choice(["high school", "bachelor", "master", "doctorate"]),
+                "study_version": "synthetic",
             }
         )
         if kind == "screened_out":

@@ -154,17 +154,26 @@ def serve(
     forwarded_allow_ips: str = typer.Option(
         "127.0.0.1", help="Reverse proxies whose X-Forwarded-For is trusted (comma-separated, "
         "'*' = any), so rate limits see participants' addresses, not the proxy's."),
+    new_version: bool = typer.Option(
+        False, "--new-version", help="Start even though sessions are in progress on an "
+        "older study file this database does not hold (they can then not finish)."),
 ) -> None:
     """Run the study server (participants open /?PROLIFIC_PID=...&STUDY_ID=...&SESSION_ID=...)."""
     import secrets
 
     import uvicorn
 
+    from cfteach.study.config import StudyError
     from cfteach.study.server import create_app
 
     token = researcher_token or secrets.token_urlsafe(16)
-    app = create_app(study, db, researcher_token=token, sessions_per_minute=sessions_per_minute,
-                     events_per_minute=events_per_minute)
+    try:
+        app = create_app(study, db, researcher_token=token,
+                         sessions_per_minute=sessions_per_minute,
+                         events_per_minute=events_per_minute, new_version=new_version)
+    except StudyError as e:
+        typer.echo(f"Error: {e}", err=True)
+        raise typer.Exit(1) from None
     typer.echo(f"researcher page: http://{host}:{port}/researcher?token={token}", err=True)
     uvicorn.run(app, host=host, port=port, log_level=os.environ.get("CFTEACH_LOG", "info"),
                 access_log=False, proxy_headers=True, forwarded_allow_ips=forwarded_allow_ips)

@@ -35,6 +35,7 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("age", "int", "self-reported age"),
         ("gender", "str", "self-reported gender"),
         ("education", "str", "self-reported education (optional item)"),
+        ("study_version", "str", "content hash of the study file the session ran on"),
     ],
     "test_responses.csv": [
         ("participant_id", "str", "see participants.csv"),
@@ -109,7 +110,8 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
                 s.condition, _b(s.condition in COUNTERFACTUAL), _b(s.condition in FEATURE),
                 s.domain_order, s.test_set, status, _b(s.is_preview), _iso(s.created_at),
                 _iso(s.completed_at), s.practice_attempts,
-                "" if s.age is None else s.age, s.gender or "", s.education or ""])
+                "" if s.age is None else s.age, s.gender or "", s.education or "",
+                s.study_version])
         for t in db.scalars(select(TestResponse).order_by(TestResponse.session_pk,
                                                           TestResponse.id)):
             s = by_pk.get(t.session_pk)

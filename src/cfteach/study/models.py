@@ -105,3 +105,14 @@ class TestResponse(Base):
     time_ms: Mapped[int] = mapped_column(Integer)
     server_ms: Mapped[int] = mapped_column(Integer)
     confidence: Mapped[int] = mapped_column(Integer)
+
+
+class StudyVersion(Base):
+    """The content of every study file the server has run, so a session started on one
+    version is served from it to the end even after `study.json` changes."""
+
+    __tablename__ = "study_versions"
+    version: Mapped[str] = mapped_column(String(32), primary_key=True)
+    title: Mapped[str] = mapped_column(String(200))
+    content: Mapped[str] = mapped_column(Text)  # study.json as written by `study init`
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

@@ -14,10 +14,11 @@ from fastapi.staticfiles import StaticFiles
 from starlette.middleware.base import BaseHTTPMiddleware
 
 from . import schemas
-from .config import load_study
+from .config import StudyError, load_study
 from .db import make_engine, upgrade
 from .ratelimit import RateLimiter
 from .service import ApiError, StudyService
+from .versions import store_version, unstored_in_progress
 
 HERE = Path(__file__).parent
 MAX_BODY = 64 * 1024
@@ -53,16 +54,28 @@ def _err(status: int, code: str, message: str) -> JSONResponse:
 
 def create_app(study_dir: str | Path, db_url: str | None = None, *,
                researcher_token: str | None = None, seed: int | None = None,
-               sessions_per_minute: int = 120, events_per_minute: int = 600) -> FastAPI:
+               sessions_per_minute: int = 120, events_per_minute: int = 600,
+               new_version: bool = False) -> FastAPI:
     """Build the server for one study folder; migrations run here, before serving.
 
     Rate limits (0 = off): new sessions per client address, events per session, per minute.
+    The study file is kept in the database, so sessions started on an older file finish on
+    it. Sessions in progress on a file the database does not hold (a database from before
+    files were kept) would be stranded: refuse to start unless `new_version`.
     """
     study = load_study(study_dir)
     if db_url is None:
         db_url = f"sqlite:///{Path(study_dir) / 'study.db'}"
     engine = make_engine(db_url)
     upgrade(engine)
+    stranded = unstored_in_progress(engine, study["version"])
+    if stranded and not new_version:
+        engine.dispose()
+        which = ", ".join(f"{n} on version {v}" for v, n in sorted(stranded.items()))
+        raise StudyError(f"{sum(stranded.values())} session(s) are in progress on a study file "
+                         f"this database does not hold ({which}); serve that file until they "
+                         "finish, or pass --new-version to start anyway (they cannot finish)")
+    store_version(engine, study)
     service = StudyService(engine, study, seed=seed)
     token = researcher_token or secrets.token_urlsafe(16)
     session_limit = RateLimiter(sessions_per_minute)

@@ -24,6 +24,7 @@ from .games import ScoringError, replay
 from .models import Event, Session, TestResponse, aware, utcnow
 from .steps import ALLOWED, build_steps
 from .texts import EDUCATION, GENDERS, LIKERT
+from .versions import load_version
 
 _PLACEHOLDER = re.compile(r"^\{\{?%.*%\}?\}$|^$")
 _ID_OK = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
@@ -51,6 +52,9 @@ class StudyService:
         self._pg = engine.dialect.name == "postgresql"
         self._steps_cache: dict[tuple, list[dict]] = {}
         self._cache_lock = threading.Lock()
+        # Study versions by id: the current one plus older ones that still have sessions,
+        # read from the database on first use (see versions.py).
+        self._studies: dict[str, dict] = {study["version"]: study}
 
     # -- sessions -------------------------------------------------------------------------
 
@@ -101,15 +105,25 @@ class StudyService:
         row = db.scalar(q)
         if row is None:
             raise ApiError(401, "no_session", "unknown session token")
-        if row.study_version != self.study["version"]:
-            raise ApiError(410, "study_changed", "this session belongs to another study version")
+        if row.study_version not in self._studies:
+            old = load_version(db, row.study_version)
+            if old is None:
+                raise ApiError(410, "study_changed",
+                               "this session belongs to a study version the server no longer has")
+            with self._cache_lock:
+                self._studies[row.study_version] = old
         return row
 
+    def study_of(self, row: Session) -> dict:
+        """The study version `row` started on (loaded by `_session`)."""
+        return self._studies[row.study_version]
+
     def steps(self, row: Session) -> list[dict]:
-        key = (row.domain_order, row.test_set, row.seed)
+        key = (row.study_version, row.domain_order, row.test_set, row.seed)
         steps = self._steps_cache.get(key)
         if steps is None:
-            steps = build_steps(self.study, row.domain_order.split(";"), row.test_set, row.seed)
+            steps = build_steps(self.study_of(row), row.domain_order.split(";"), row.test_set,
+                                row.seed)
             with self._cache_lock:
                 if len(self._steps_cache) >= 2048:  # bounded: recent sessions only
                     self._steps_cache.pop(next(iter(self._steps_cache)))
@@ -125,7 +139,8 @@ class StudyService:
 
     def _view(self, db: DBSession, row: Session) -> dict:
         steps = self.steps(row)
-        comp = self.study["completion"]
+        s = self.study_of(row)
+        comp = s["completion"]
         base = {"status": row.status, "step_index": row.step_index, "n_steps": len(steps),
                 "participant_id": row.participant_id, "is_preview": row.is_preview}
         if row.status == "screened_out":
@@ -133,7 +148,6 @@ class StudyService:
                                      "redirect": _redirect(comp, "screened_out", row)}}
         step = dict(steps[row.step_index])
         kind = step["kind"]
-        s = self.study
         if kind == "consent" and s.get("consent_html"):
             step["html"] = s["consent_html"]
         if kind in ("free_play", "practice"):
@@ -219,6 +233,7 @@ class StudyService:
             raise ApiError(409, "wrong_step", f"event is for step {req.step_index} but the "
                            f"session is at step {row.step_index}")
         steps = self.steps(row)
+        study = self.study_of(row)
         step = steps[row.step_index]
         kind = step["kind"]
         if req.type != "page_load" and req.type not in ALLOWED[kind]:
@@ -245,7 +260,7 @@ class StudyService:
         if req.type in ("continue", "consent", "likert"):
             advance = True
             if kind == "demos":
-                n = len(self.study["curricula"][step["domain"]][row.condition])
+                n = len(study["curricula"][step["domain"]][row.condition])
                 done = self._demo_completions(db, row, row.step_index, n)
                 if min(done) < 1:
                     raise ApiError(409, "demos_unwatched", "every demonstration must be "
@@ -268,7 +283,7 @@ class StudyService:
         return row, result
 
     def _practice(self, row: Session, p: schemas.PracticeAttempt) -> dict:
-        prac = self.study["practice"]
+        prac = self.study_of(row)["practice"]
         try:
             score = replay(prac["game"], prac["weights"], p.actions, require_end=False)
         except ScoringError as e:
@@ -276,7 +291,7 @@ class StudyService:
         energy = prac["start_energy"] + score.reward
         passed = score.finished and is_optimal(energy, prac["target_energy"])
         row.practice_attempts += 1
-        if not passed and row.practice_attempts >= self.study["practice_attempts"]:
+        if not passed and row.practice_attempts >= self.study_of(row)["practice_attempts"]:
             row.status = "screened_out"
             row.completed_at = utcnow()
         return {"passed": passed, "energy": energy, "finished": score.finished,
@@ -285,9 +300,10 @@ class StudyService:
     def _score_test(self, db: DBSession, row: Session, step: dict, ev: Event,
                     p: schemas.TestAnswer, now: datetime) -> dict:
         dom = step["domain"]
-        t = self.study["tests"][dom][row.test_set][step["test_index"]]
+        study = self.study_of(row)
+        t = study["tests"][dom][row.test_set][step["test_index"]]
         try:
-            score = replay(t["game"], self.study["domain_info"][dom]["weights"], p.actions)
+            score = replay(t["game"], study["domain_info"][dom]["weights"], p.actions)
         except ScoringError as e:
             raise ApiError(422, "bad_moves", str(e)) from e
         entered = aware(row.step_entered_at)
