@@ -172,6 +172,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                         "watch_ms": int(length_ms * (1 + replays) + rng.integers(0, 800)),
                     }
                 )
+                demos[-1]["client_watch_ms"] = demos[-1]["watch_ms"]
             base_inf = 3.3 - 0.2 * cf
             base_eff = 2.4 + cfg.effort_cf * cf
             likert.append(
@@ -244,6 +245,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                         "confidence": int(conf[i]),
                     }
                 )
+                tests[-1]["client_time_ms"] = tests[-1]["time_ms"]
     return StudyExport(
         pd.DataFrame(parts),
         pd.DataFrame(tests),

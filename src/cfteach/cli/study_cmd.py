@@ -65,7 +65,8 @@ def init(
     screened_out_code: str = typer.Option("SCREENED", help="Code for screened-out people."),
     completion_url: str = typer.Option("https://app.prolific.com/submissions/complete?cc=",
                                        help="Redirect target; the code is appended. '' = none."),
-    demo_step_ms: int = typer.Option(500, help="Milliseconds per demonstration step."),
+    demo_step_ms: int = typer.Option(500, help="Milliseconds per demonstration step (the "
+                                     "server counts a play once it lasted about steps x this)."),
     cutoff_minutes: float = typer.Option(30.0, help="An idle session stops counting toward "
                                          "its assignment cell after this long."),
     consent: Path | None = typer.Option(None, "--consent", help="HTML file with your consent "

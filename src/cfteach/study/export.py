@@ -52,8 +52,10 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("optimal_reward", "float", "reward of the robot's optimal answer"),
         ("optimal", "0/1", "1 if reward equals optimal_reward within 1e-9 (the paper's M1)"),
         ("optimal_length", "int", "number of actions of the robot's optimal answer"),
-        ("time_ms", "int", "from the test being first shown to its submission (browser clock; "
-                           "a reload keeps counting)"),
+        ("time_ms", "int", "from the test being first shown to its submission, on the server's "
+                           "clock (from the previous page's answer being stored to this "
+                           "answer arriving; a reload keeps counting)"),
+        ("client_time_ms", "int", "the same time as the browser reported it (not trusted)"),
         ("confidence", "int", "1..5: confidence item (1 = Not Confident)"),
     ],
     "likert.csv": [
@@ -69,9 +71,12 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("condition", "str", "see participants.csv"),
         ("domain", "str", "domain of the demonstration"),
         ("demo_index", "int", "0-based position of the demonstration in the curriculum"),
-        ("plays_completed", "int", "plays watched to the end"),
+        ("plays_completed", "int", "plays the server saw run from start to end for at least "
+                                   "the replay's length"),
         ("replays", "int", "plays started beyond the first"),
-        ("watch_ms", "int", "total time spent playing this demonstration"),
+        ("watch_ms", "int", "total time spent playing this demonstration, on the server's "
+                            "clock (from each play's start to its end)"),
+        ("client_watch_ms", "int", "the same total as the browser reported it (not trusted)"),
     ],
 }
 
@@ -121,8 +126,8 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
                 s.participant_id, s.condition, t.domain, t.domain_position, t.test_id,
                 t.difficulty, "" if t.overlap is None else repr(t.overlap), t.trial_index,
                 t.actions, t.n_actions, repr(t.reward), repr(t.optimal_reward), _b(t.optimal),
-                t.optimal_length, t.time_ms, t.confidence])
-        views: dict[tuple, list[int]] = defaultdict(lambda: [0, 0, 0])
+                t.optimal_length, t.server_ms, t.time_ms, t.confidence])
+        views: dict[tuple, list[int]] = defaultdict(lambda: [0, 0, 0, 0])
         for ev in db.scalars(select(Event).where(Event.type.in_(
                 ("likert", "demo_play_start", "demo_play_end")))
                 .order_by(Event.session_pk, Event.seq)):
@@ -141,12 +146,13 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
                 if ev.type == "demo_play_start":
                     v[1] += 1
                 else:
-                    v[0] += int(bool(ev.payload["completed"]))
-                    v[2] += int(ev.payload["watch_ms"])
-        for (pk, dom, k), (done, starts, ms) in sorted(views.items()):
+                    v[0] += int(bool(ev.verified))
+                    v[2] += ev.server_ms or 0
+                    v[3] += int(ev.payload["watch_ms"])
+        for (pk, dom, k), (done, starts, ms, client_ms) in sorted(views.items()):
             s = by_pk[pk]
             rows["demo_views.csv"].append([s.participant_id, s.condition, dom, k, done,
-                                           max(0, starts - 1), ms])
+                                           max(0, starts - 1), ms, client_ms])
     counts = {}
     for name, cols in COLUMNS.items():
         with open(out / name, "w", newline="", encoding="utf-8") as f:

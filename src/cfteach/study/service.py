@@ -22,7 +22,7 @@ from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .build import browser_game
 from .games import ScoringError, replay
 from .models import Event, Session, TestResponse, aware, utcnow
-from .steps import ALLOWED, build_steps
+from .steps import ALLOWED, build_steps, demo_required_ms
 from .texts import EDUCATION, GENDERS, LIKERT
 from .versions import load_version
 
@@ -196,13 +196,41 @@ class StudyService:
 
     def _demo_completions(self, db: DBSession, row: Session, step_index: int,
                           n: int) -> list[int]:
+        """Plays of each demonstration the server saw run start to end (`verified`)."""
         counts = [0] * n
         for payload in db.scalars(select(Event.payload).where(
                 Event.session_pk == row.id, Event.step_index == step_index,
-                Event.type == "demo_play_end")):
-            if payload.get("completed") and 0 <= payload["demo_index"] < n:
+                Event.type == "demo_play_end", Event.verified.is_(True))):
+            if 0 <= payload["demo_index"] < n:
                 counts[payload["demo_index"]] += 1
         return counts
+
+    def _check_demo(self, db: DBSession, row: Session, step: dict, ev: Event,
+                    p: schemas.DemoPlayStart | schemas.DemoPlayEnd, now: datetime) -> None:
+        """Refuse unknown demonstrations; time a play's end against its start, server-side.
+
+        A play counts as watched only if this end closes a start of the same demonstration
+        (the last play event of the step) and lasted, on the server's clock, at least the
+        replay's length minus a small tolerance (`steps.demo_required_ms`).
+        """
+        study = self.study_of(row)
+        demos = study["curricula"][step["domain"]][row.condition]
+        if p.demo_index >= len(demos):
+            raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not one of this "
+                           f"page's {len(demos)} demonstrations")
+        if not isinstance(p, schemas.DemoPlayEnd):
+            return
+        start = db.scalar(select(Event).where(
+            Event.session_pk == row.id, Event.step_index == row.step_index,
+            Event.type.in_(("demo_play_start", "demo_play_end")))
+            .order_by(Event.seq.desc()).limit(1))
+        if (start is None or start.type != "demo_play_start"
+                or start.payload["demo_index"] != p.demo_index):
+            ev.server_ms, ev.verified = None, False
+            return
+        ev.server_ms = max(0, int((now - aware(start.server_at)).total_seconds() * 1000))
+        need = demo_required_ms(len(demos[p.demo_index]["actions"]), study["demo_step_ms"])
+        ev.verified = bool(p.completed) and ev.server_ms >= need
 
     # -- events ---------------------------------------------------------------------------
 
@@ -252,6 +280,8 @@ class StudyService:
                    step_index=row.step_index, step_kind=kind, domain=step.get("domain"),
                    type=req.type,
                    payload=payload.model_dump(), client_ms=req.client_ms, server_at=now)
+        if req.type in ("demo_play_start", "demo_play_end"):
+            self._check_demo(db, row, step, ev, payload, now)
         db.add(ev)
         db.flush()
         row.last_active_at = now
@@ -263,8 +293,10 @@ class StudyService:
                 n = len(study["curricula"][step["domain"]][row.condition])
                 done = self._demo_completions(db, row, row.step_index, n)
                 if min(done) < 1:
+                    missing = ", ".join(str(k + 1) for k, d in enumerate(done) if d < 1)
                     raise ApiError(409, "demos_unwatched", "every demonstration must be "
-                                   f"watched to the end at least once (plays: {done})")
+                                   "played and watched to the end at least once; not yet: "
+                                   f"demonstration {missing}")
         elif req.type == "practice_attempt":
             result = self._practice(row, payload)
             advance = result["passed"]
