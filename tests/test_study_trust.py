@@ -1,5 +1,6 @@
 """What the server no longer takes on trust from the browser: demonstration plays and test
-times measured on the server's clock. Every API test runs on SQLite and PostgreSQL."""
+times measured on the server's clock; declining consent ends the session. Every API test
+runs on SQLite and PostgreSQL."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
+import test_study_browser
 import test_study_support
 from cfteach.study.bot import run_participant
 from cfteach.study.build import init_study, toy_sources
@@ -22,8 +24,11 @@ from cfteach.study.server import create_app
 from cfteach.study.steps import DEMO_TOLERANCE_MS, demo_required_ms
 
 db_url = test_study_support.db_url  # shared fixtures
+toy_study = test_study_support.toy_study
+browser = test_study_browser.browser
 
 PARAMS = {"prolific_pid": "5f1c0ffee0ddba11c0ffee00", "study_id": "S1", "session_id": "X1"}
+CONSENT = {"adult": True, "read": True, "agree": True}
 
 
 @functools.cache
@@ -44,7 +49,8 @@ def quick_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """10 ms per step: every toy demonstration is shorter than the tolerance, so bots and
     a frozen clock pass the demonstrations without waiting."""
     out = tmp_path_factory.mktemp("quick_study")
-    init_study(out, _toy(), demo_step_ms=10, completion_code="C0MPL3TE")
+    init_study(out, _toy(), demo_step_ms=10, completion_code="C0MPL3TE",
+               no_consent_code="N0C0NSENT")
     return out
 
 
@@ -83,6 +89,10 @@ def _state(c: TestClient, token: str) -> dict:
     r = c.get("/api/state", headers={"X-Session-Token": token})
     assert r.status_code == 200, r.text
     return r.json()
+
+
+def _progress(c: TestClient) -> dict:
+    return c.get("/api/researcher/progress", headers={"X-Researcher-Token": "rt"}).json()
 
 
 # -- demonstration plays, timed by the server ----------------------------------------------
@@ -168,3 +178,86 @@ def test_test_time_is_the_servers_and_the_browsers_is_kept_apart(
     assert (row["time_ms"], row["client_time_ms"]) == ("104", "0")
     ex = load_export(tmp_path)  # the analysis reads the server's time under its old name
     assert ex.tests["time_ms"].tolist() == [104] and ex.tests["client_time_ms"].tolist() == [0]
+
+
+# -- declining consent ---------------------------------------------------------------------
+
+
+def test_declining_consent_ends_the_session_and_frees_its_cell(
+        quick_study: Path, db_url: str, tmp_path: Path) -> None:
+    from cfteach.analysis.io import load_export
+
+    app = create_app(quick_study, db_url, researcher_token="rt", seed=5)
+    with TestClient(app) as c:
+        tok = c.post("/api/session", json=PARAMS).json()["token"]
+        assert sum(cell["occupied"] for cell in _progress(c)["cells"]) == 1
+        r = _event(c, tok, 0, "decline")
+        assert r.status_code == 200
+        st = r.json()["state"]
+        assert st["status"] == "declined" and st["step"]["kind"] == "declined"
+        assert st["step"]["code"] == "N0C0NSENT"
+        assert st["step"]["redirect"].endswith("cc=N0C0NSENT")
+        prog = _progress(c)
+        assert sum(cell["occupied"] for cell in prog["cells"]) == 0  # freed at once
+        assert prog["status"] == {"declined": 1}
+        r = _event(c, tok, 0, "consent", CONSENT)
+        assert r.status_code == 409 and r.json()["error"] == "session_finished"
+        again = c.post("/api/session", json=PARAMS).json()
+        assert again["token"] == tok and _state(c, tok)["step"]["kind"] == "declined"
+        # Declining is an answer to the consent page only.
+        other = run_participant(c, {**PARAMS, "prolific_pid": "consented1"}, stop_after=1)
+        r = _event(c, other["token"], 1, "decline")
+        assert r.status_code == 422 and r.json()["error"] == "wrong_event_type"
+    app.state.service.engine.dispose()
+    export_csv(db_url, tmp_path)
+    people = {p["prolific_pid"]: p for p in _read(tmp_path / "participants.csv")}
+    assert people[PARAMS["prolific_pid"]]["status"] == "declined"
+    assert people[PARAMS["prolific_pid"]]["completed_at"] != ""
+    ex = load_export(tmp_path)
+    assert sorted(ex.participants["status"]) == ["declined", "in_progress"]
+
+
+def test_old_study_files_without_a_no_consent_code_get_the_default(
+        tmp_path: Path, toy_study: Path) -> None:
+    import json
+    import shutil
+
+    folder = tmp_path / "old"
+    shutil.copytree(toy_study, folder)
+    data = json.loads((folder / "study.json").read_text())
+    data["completion"].pop("declined")
+    (folder / "study.json").write_text(json.dumps(data))
+    app = create_app(folder, f"sqlite:///{tmp_path / 'o.db'}")
+    with TestClient(app) as c:
+        tok = c.post("/api/session", json=PARAMS).json()["token"]
+        st = _event(c, tok, 0, "decline").json()["state"]
+    app.state.service.engine.dispose()
+    assert st["step"]["code"] == "NOCONSENT"
+
+
+@pytest.mark.browser
+@pytest.mark.slow
+def test_browser_no_thanks_shows_the_no_consent_code(browser, quick_study: Path,  # noqa: ANN001
+                                                     tmp_path: Path) -> None:
+    from cfteach.study.livesrv import running
+
+    app = create_app(quick_study, f"sqlite:///{tmp_path / 'd.db'}", researcher_token="rt")
+    with running(app) as base:
+        page = browser.new_page()
+        redirected: list[str] = []
+        page.route("https://app.prolific.com/**", lambda route: (
+            redirected.append(route.request.url),
+            route.fulfill(status=200, body="<p>prolific</p>", content_type="text/html")))
+        page.goto(f"{base}/?PROLIFIC_PID=decline01&STUDY_ID=st1&SESSION_ID=se1")
+        page.wait_for_selector("#decline")
+        page.click("#decline")
+        page.wait_for_selector("main[data-step='declined']")
+        assert page.text_content("#code") == "N0C0NSENT"
+        assert "return your submission on Prolific" in page.text_content("main")
+        page.wait_for_url("https://app.prolific.com/**", timeout=10_000)
+        assert redirected == ["https://app.prolific.com/submissions/complete?cc=N0C0NSENT"]
+        page.close()
+    prog = app.state.service.progress()
+    assert prog["status"] == {"declined": 1}
+    assert sum(c["occupied"] for c in prog["cells"]) == 0
+    app.state.service.engine.dispose()

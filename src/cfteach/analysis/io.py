@@ -14,7 +14,7 @@ import pandas as pd
 
 CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
 DIFFICULTIES = ("low", "medium", "high")
-STATUSES = ("completed", "screened_out", "abandoned", "in_progress")
+STATUSES = ("completed", "screened_out", "declined", "abandoned", "in_progress")
 LIKERT_ITEMS = ("informativeness", "mental_effort")
 CF_CONDITIONS = frozenset({"counterfactual_only", "proposed"})
 FS_CONDITIONS = frozenset({"feature_only", "proposed"})

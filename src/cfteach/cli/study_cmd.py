@@ -63,6 +63,8 @@ def init(
     title: str = typer.Option("Machine Teaching Study", help="Page title."),
     completion_code: str = typer.Option("COMPLETED", help="Prolific completion code."),
     screened_out_code: str = typer.Option("SCREENED", help="Code for screened-out people."),
+    no_consent_code: str = typer.Option("NOCONSENT", help="Code for people who decline "
+                                        "consent (Prolific asks them to return the study)."),
     completion_url: str = typer.Option("https://app.prolific.com/submissions/complete?cc=",
                                        help="Redirect target; the code is appended. '' = none."),
     demo_step_ms: int = typer.Option(500, help="Milliseconds per demonstration step (the "
@@ -85,7 +87,8 @@ def init(
     else:
         sources = teaching_sources(names, profile=profile, seed=seed, progress=True)
     path = init_study(out, sources, title=title, completion_code=completion_code,
-                      screened_out_code=screened_out_code, completion_url=completion_url,
+                      screened_out_code=screened_out_code, no_consent_code=no_consent_code,
+                      completion_url=completion_url,
                       demo_step_ms=demo_step_ms, cutoff_minutes=cutoff_minutes,
                       consent_html=_read_consent(consent))
     typer.echo(f"wrote {path}")

@@ -27,7 +27,8 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("feature_scaffolding", "0/1", "1 if the condition uses feature scaffolding"),
         ("domain_order", "str", "domains in the order shown, joined by ';'"),
         ("test_set", "int", "which of the alternative test sets (0-based)"),
-        ("status", "str", "completed | screened_out | abandoned | in_progress"),
+        ("status", "str", "completed | screened_out | declined (said no to consent) | "
+                          "abandoned | in_progress"),
         ("is_preview", "0/1", "1 for preview/test sessions (not counted in assignment)"),
         ("started_at", "ISO 8601 UTC", "session creation time"),
         ("completed_at", "ISO 8601 UTC", "completion (or screen-out) time; empty otherwise"),

@@ -143,9 +143,9 @@ class StudyService:
         comp = s["completion"]
         base = {"status": row.status, "step_index": row.step_index, "n_steps": len(steps),
                 "participant_id": row.participant_id, "is_preview": row.is_preview}
-        if row.status == "screened_out":
-            return {**base, "step": {"kind": "screened_out", "code": comp["screened_out"],
-                                     "redirect": _redirect(comp, "screened_out", row)}}
+        if row.status in ("screened_out", "declined"):
+            return {**base, "step": {"kind": row.status, "code": _code(comp, row.status),
+                                     "redirect": _redirect(comp, row.status, row)}}
         step = dict(steps[row.step_index])
         kind = step["kind"]
         if kind == "consent" and s.get("consent_html"):
@@ -297,6 +297,9 @@ class StudyService:
                     raise ApiError(409, "demos_unwatched", "every demonstration must be "
                                    "played and watched to the end at least once; not yet: "
                                    f"demonstration {missing}")
+        elif req.type == "decline":
+            row.status = "declined"  # final: frees the assignment cell at once
+            row.completed_at = now
         elif req.type == "practice_attempt":
             result = self._practice(row, payload)
             advance = result["passed"]
@@ -372,10 +375,20 @@ def _public_info(info: dict) -> dict:
     return {k: info[k] for k in ("title", "task", "actions", "note", "keys", "effects_word")}
 
 
+#: The no-consent code of study files written before `--no-consent-code` existed.
+DEFAULT_DECLINED_CODE = "NOCONSENT"
+
+
+def _code(comp: dict, which: str) -> str:
+    if which == "declined":
+        return comp.get("declined", DEFAULT_DECLINED_CODE)
+    return comp[which]
+
+
 def _redirect(comp: dict, which: str, row: Session) -> str | None:
     if not comp.get("url") or row.is_preview:
         return None
-    return f"{comp['url']}{comp[which]}"
+    return f"{comp['url']}{_code(comp, which)}"
 
 
 def _first_error(e: ValidationError) -> str:

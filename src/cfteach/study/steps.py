@@ -43,7 +43,7 @@ def build_steps(study: dict, domain_order: list[str], test_set: int, seed: int) 
 
 #: Event types a participant may send on each kind of step (plus `page_load` anywhere).
 ALLOWED = {
-    "consent": {"consent"},
+    "consent": {"consent", "decline"},
     "instructions": {"continue"},
     "free_play": {"continue"},
     "practice": {"practice_attempt"},
