@@ -1,6 +1,6 @@
-"""What the server no longer takes on trust from the browser: demonstration plays and test
-times measured on the server's clock; declining consent ends the session. Every API test
-runs on SQLite and PostgreSQL."""
+"""What the server no longer takes on trust from the browser, and what it no longer loses:
+demonstration plays and test times measured on the server's clock, declined consent ending
+the session, free-text comments in the export. Every API test runs on SQLite and PostgreSQL."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import test_study_browser
 import test_study_support
 from cfteach.study.bot import run_participant
 from cfteach.study.build import init_study, toy_sources
-from cfteach.study.export import export_csv
+from cfteach.study.export import COLUMNS, export_csv
 from cfteach.study.games import shortest_path
 from cfteach.study.models import utcnow
 from cfteach.study.server import create_app
@@ -233,6 +233,32 @@ def test_old_study_files_without_a_no_consent_code_get_the_default(
         st = _event(c, tok, 0, "decline").json()["state"]
     app.state.service.engine.dispose()
     assert st["step"]["code"] == "NOCONSENT"
+
+
+# -- free-text comments --------------------------------------------------------------------
+
+
+def test_free_text_comments_are_exported(quick_study: Path, db_url: str,
+                                         tmp_path: Path) -> None:
+    text = 'I am Ana from "Porto", mail me: ana@example.org\nthanks, \u2713'
+    app = create_app(quick_study, db_url, seed=6)
+    with TestClient(app) as c:
+        who = run_participant(c, PARAMS, comment=text)
+        run_participant(c, {**PARAMS, "prolific_pid": "quiet00001"})  # leaves them empty
+    app.state.service.engine.dispose()
+    counts = export_csv(db_url, tmp_path)
+    assert counts["comments.csv"] == 4
+    pid = who["state"]["participant_id"]
+    rows = _read(tmp_path / "comments.csv")
+    assert all(r["participant_id"] == pid for r in rows)
+    got = sorted((r["source"], r["domain"], r["comment"]) for r in rows)
+    assert got == sorted([("demographics", "", text)] + [
+        ("survey", d, f"{text} {d}") for d in ("toy_a", "toy_b", "toy_c")])
+    dictionary = _read(tmp_path / "data_dictionary.csv")
+    (desc,) = [d["description"] for d in dictionary
+               if (d["file"], d["column"]) == ("comments.csv", "comment")]
+    assert "MAY IDENTIFY" in desc
+    assert [c for c, _, _ in COLUMNS["comments.csv"]] == list(rows[0])
 
 
 @pytest.mark.browser

@@ -79,6 +79,15 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
                             "clock (from each play's start to its end)"),
         ("client_watch_ms", "int", "the same total as the browser reported it (not trusted)"),
     ],
+    "comments.csv": [
+        ("participant_id", "str", "see participants.csv"),
+        ("condition", "str", "see participants.csv"),
+        ("source", "str", "survey (comment box under a domain's Likert items) | demographics "
+                          "(final comments)"),
+        ("domain", "str", "domain of the survey; empty for demographics"),
+        ("comment", "str", "free text as typed: MAY IDENTIFY THE PARTICIPANT (names, "
+                           "places, contacts); review before sharing"),
+    ],
 }
 
 
@@ -130,7 +139,7 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
                 t.optimal_length, t.server_ms, t.time_ms, t.confidence])
         views: dict[tuple, list[int]] = defaultdict(lambda: [0, 0, 0, 0])
         for ev in db.scalars(select(Event).where(Event.type.in_(
-                ("likert", "demo_play_start", "demo_play_end")))
+                ("likert", "demo_play_start", "demo_play_end", "demographics")))
                 .order_by(Event.session_pk, Event.seq)):
             s = by_pk.get(ev.session_pk)
             if s is None:
@@ -141,6 +150,13 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
                 for item in ("informativeness", "mental_effort"):
                     rows["likert.csv"].append([s.participant_id, s.condition, dom,
                                                order.index(dom) + 1, item, ev.payload[item]])
+                if ev.payload.get("comment"):
+                    rows["comments.csv"].append([s.participant_id, s.condition, "survey", dom,
+                                                 ev.payload["comment"]])
+            elif ev.type == "demographics":
+                if ev.payload.get("comments"):
+                    rows["comments.csv"].append([s.participant_id, s.condition, "demographics",
+                                                 "", ev.payload["comments"]])
             elif ev.type in ("demo_play_start", "demo_play_end"):
                 dom = ev.domain
                 v = views[(s.id, dom, ev.payload["demo_index"])]
