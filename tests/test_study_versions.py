@@ -68,6 +68,8 @@ def test_a_changed_study_file_keeps_serving_sessions_started_on_the_old_one(
         assert back["token"] == mid["token"] and back["resumed"] is True
         st = _state(c, back["token"])
         assert st["step_index"] == 8 and st["step"]["kind"] == "test"
+        assert _progress(c)["older_versions_in_progress"] == 1  # shown, not counted in cells
+        assert "in progress on older study versions: 1" in c.get("/researcher?token=rt").text
         done = run_participant(c, PARAMS)  # resumes by PID and finishes on version 1
         assert done["state"]["step"]["code"] == "CODE1"
         assert done["state"]["step"]["redirect"].endswith("cc=CODE1")
@@ -75,6 +77,7 @@ def test_a_changed_study_file_keeps_serving_sessions_started_on_the_old_one(
         assert new["state"]["step"]["code"] == "CODE2"
         prog = _progress(c)
         assert prog["study_version"] == v2 and prog["status"] == {"completed": 1}
+        assert prog["older_versions_in_progress"] == 0
     app.state.service.engine.dispose()
     export_csv(db_url, tmp_path / "out")
     versions = {r["prolific_pid"]: (r["status"], r["study_version"])

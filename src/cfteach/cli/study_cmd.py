@@ -121,7 +121,8 @@ def progress(
     engine = make_engine(db or f"sqlite:///{study / 'study.db'}")
     upgrade(engine)
     p = StudyService(engine, load_study(study)).progress()
-    typer.echo(f"study {p['study_version']}: {p['status']} (previews: {p['previews']})")
+    typer.echo(f"study {p['study_version']}: {p['status']} (previews: {p['previews']}; in "
+               f"progress on older versions: {p['older_versions_in_progress']})")
     for c in p["cells"]:
         typer.echo(f"{c['condition']:<20} {c['domain_order']:<28} set {c['test_set']}  "
                    f"occupied {c['occupied']}  completed {c['completed']}")

@@ -152,7 +152,8 @@ def _progress_html(p: dict, title: str) -> str:
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>Progress</title>"
             f"<link rel='stylesheet' href='/static/style.css'></head><body class='researcher'>"
             f"<h1>{html.escape(title)}: progress</h1><p>Study version {p['study_version']}. "
-            f"Sessions by status: {status or 'none'}; previews (not counted): {p['previews']}."
-            f"</p><table><thead><tr><th>condition</th><th>domain order</th><th>test set</th>"
+            f"Sessions by status: {status or 'none'}; previews (not counted): {p['previews']}; "
+            f"in progress on older study versions: {p['older_versions_in_progress']}.</p>"
+            f"<table><thead><tr><th>condition</th><th>domain order</th><th>test set</th>"
             f"<th>occupied (completed + active)</th><th>completed</th></tr></thead>"
             f"<tbody>{rows}</tbody></table></body></html>")

@@ -364,11 +364,14 @@ class StudyService:
                 .group_by(Session.status)).all())
             previews = db.scalar(select(func.count()).select_from(Session).where(
                 Session.is_preview.is_(True))) or 0
+            older = db.scalar(select(func.count()).select_from(Session).where(
+                Session.study_version != self.study["version"], Session.is_preview.is_(False),
+                Session.status == "in_progress")) or 0
         cells = [{"condition": c, "domain_order": ";".join(o), "test_set": t,
                   "occupied": counts[(c, o, t)], "completed": done[(c, o, t)]}
                  for (c, o, t) in all_cells(self.study)]
         return {"study_version": self.study["version"], "status": status,
-                "previews": previews, "cells": cells}
+                "previews": previews, "older_versions_in_progress": older, "cells": cells}
 
 
 def _public_info(info: dict) -> dict:
