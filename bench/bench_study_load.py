@@ -50,7 +50,8 @@ def main() -> int:
     study = args.study
     if study is None:
         study = tmp / "study"
-        init_study(study, toy_sources())
+        # 10 ms per demonstration step: bots wait out each replay (the server times it).
+        init_study(study, toy_sources(), demo_step_ms=10)
     db = args.db or f"sqlite:///{tmp / 'load.db'}"
     if db.startswith("postgresql"):
         engine = make_engine(db)

@@ -127,4 +127,5 @@ PAYLOADS: dict[str, type[Strict]] = {
     "consent": Consent, "continue": Empty, "practice_attempt": PracticeAttempt,
     "demo_play_start": DemoPlayStart, "demo_play_end": DemoPlayEnd, "likert": Likert,
     "test_response": TestAnswer, "demographics": Demographics, "page_load": Empty,
+    "decline": Empty,
 }

@@ -13,11 +13,12 @@ from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 
 from . import schemas
-from .config import load_study
+from .config import StudyError, load_study
 from .db import make_engine, upgrade
 from .guard import Guard
 from .ratelimit import RateLimiter
 from .service import ApiError, StudyService, well_formed_token
+from .versions import store_version, unstored_in_progress
 
 HERE = Path(__file__).parent
 # Refusals that mean "you did not prove who you are": counted per client address.
@@ -32,7 +33,7 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
                researcher_token: str | None = None, seed: int | None = None,
                sessions_per_minute: int = 120, events_per_minute: int = 600,
                auth_failures_per_minute: int = 60,
-               reports_per_minute: int = 60) -> FastAPI:
+               reports_per_minute: int = 60, new_version: bool = False) -> FastAPI:
     """Build the server for one study folder; migrations run here, before serving.
 
     Rate limits per minute (0 = off): new sessions per client address, events per session,
@@ -40,12 +41,24 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     token is looked up), error reports from the page per client address (a made-up token
     must not lift it). The client address is the connection's, or the one a trusted proxy
     forwards (see `livesrv.server_config`).
+
+    The study file is kept in the database, so sessions started on an older file finish on
+    it. Sessions in progress on a file the database does not hold (a database from before
+    files were kept) would be stranded: refuse to start unless `new_version`.
     """
     study = load_study(study_dir)
     if db_url is None:
         db_url = f"sqlite:///{Path(study_dir) / 'study.db'}"
     engine = make_engine(db_url)
     upgrade(engine)
+    stranded = unstored_in_progress(engine, study["version"])
+    if stranded and not new_version:
+        engine.dispose()
+        which = ", ".join(f"{n} on version {v}" for v, n in sorted(stranded.items()))
+        raise StudyError(f"{sum(stranded.values())} session(s) are in progress on a study file "
+                         f"this database does not hold ({which}); serve that file until they "
+                         "finish, or pass --new-version to start anyway (they cannot finish)")
+    store_version(engine, study)
     service = StudyService(engine, study, seed=seed)
     token = researcher_token or secrets.token_urlsafe(16)
     session_limit = RateLimiter(sessions_per_minute)
@@ -160,7 +173,8 @@ def _progress_html(p: dict, title: str) -> str:
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>Progress</title>"
             f"<link rel='stylesheet' href='/static/style.css'></head><body class='researcher'>"
             f"<h1>{html.escape(title)}: progress</h1><p>Study version {p['study_version']}. "
-            f"Sessions by status: {status or 'none'}; previews (not counted): {p['previews']}."
-            f"</p><table><thead><tr><th>condition</th><th>domain order</th><th>test set</th>"
+            f"Sessions by status: {status or 'none'}; previews (not counted): {p['previews']}; "
+            f"in progress on older study versions: {p['older_versions_in_progress']}.</p>"
+            f"<table><thead><tr><th>condition</th><th>domain order</th><th>test set</th>"
             f"<th>occupied (completed + active)</th><th>completed</th></tr></thead>"
             f"<tbody>{rows}</tbody></table></body></html>")

@@ -227,8 +227,7 @@ const pages = {
       h("div", { class: "checks" }, boxes.map(([k, label]) => h("label", {},
         label, " ", h("input", { type: "checkbox", id: `c-${k}`, onchange: update })))),
       status, agree, " ",
-      h("button", { id: "decline", onclick: () => app.replaceChildren(h("p", {
-        text: "Thank you for your interest. You may now close this window." })) },
+      h("button", { id: "decline", onclick: () => advance(step, "decline", {}) },
       "No thanks, I do not want to do this study"));
     update();
   },
@@ -588,6 +587,12 @@ const pages = {
   screened_out(st) {
     finish(st, "Thank you for your time. Unfortunately you don't qualify for this study. " +
       "Please return your submission on Prolific using the code below.");
+  },
+
+  declined(st) {
+    finish(st, "Thank you for your interest. As you did not consent, please return your " +
+      "submission on Prolific (\"Stop without completing\" or \"Return\") so another " +
+      "participant can take your place; you may also enter the code below.");
   },
 };
 

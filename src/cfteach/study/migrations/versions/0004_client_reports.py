@@ -1,14 +1,14 @@
 """client_reports: requests the server refused for good, as reported by the page
 
-Revision ID: 0002_client_reports
-Revises: 0001
+Revision ID: 0004
+Revises: 0003
 """
 
 import sqlalchemy as sa
 from alembic import op
 
-revision = '0002_client_reports'
-down_revision = '0001'
+revision = '0004'
+down_revision = '0003'
 branch_labels = None
 depends_on = None
 
