@@ -76,6 +76,7 @@ def main() -> int:
     study = args.study
     if study is None:
         study = tmp / "study"
+        # Fast replays: bots wait out each one (the server times it).
         init_study(study, toy_sources(), demo_step_ms=args.demo_step_ms)
     db = args.db or f"sqlite:///{tmp / 'load.db'}"
     if db.startswith("postgresql"):

@@ -7,9 +7,9 @@ import shlex
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
 from cfteach.cli import app
+from cli_runner import WideRunner
 from doc_examples import code_blocks
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "analysis.md"
@@ -23,7 +23,7 @@ def _blocks(lang: str) -> list[str]:
 @pytest.mark.slow
 def test_bash_examples_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
-    runner = CliRunner()
+    runner = WideRunner()
     commands = [ln for b in _blocks("bash") for ln in b.splitlines() if ln.startswith("cfteach")]
     # the command that regenerates the committed example is checked below, without figures
     commands = [c for c in commands if "docs/examples" not in c]
@@ -42,7 +42,7 @@ def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
     cmd = next(ln for b in _blocks("bash") for ln in b.splitlines() if "docs/examples" in ln)
     args = shlex.split(cmd)[1:]
     args[args.index("--out") + 1] = str(tmp_path)
-    result = CliRunner().invoke(app, [*args, "--no-figures"])
+    result = WideRunner().invoke(app, [*args, "--no-figures"])
     assert result.exit_code == 0, result.output
     fresh = json.loads((tmp_path / "results.json").read_text(encoding="utf-8"))
     for key in ("participants", "exclusions", "icc", "h1", "mixed", "likert", "exploratory"):

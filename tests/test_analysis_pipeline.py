@@ -10,7 +10,6 @@ import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats as sps
-from typer.testing import CliRunner
 
 from cfteach.analysis import (
     AnalysisConfig,
@@ -23,6 +22,7 @@ from cfteach.analysis import (
 from cfteach.analysis import stats as S
 from cfteach.analysis.io import DIFFICULTIES
 from cfteach.cli import app
+from cli_runner import WideRunner
 
 SMALL = dict(n_screened_out=0, n_abandoned=0, n_preview=0, n_outliers=0)
 
@@ -164,7 +164,7 @@ def test_missing_conditions_skip_only_what_cannot_run() -> None:
 
 
 def test_cli_synthetic_then_analyze_export(tmp_path: Path) -> None:
-    runner = CliRunner()
+    runner = WideRunner()
     res = runner.invoke(
         app,
         [
@@ -213,7 +213,7 @@ def test_cli_synthetic_then_analyze_export(tmp_path: Path) -> None:
 
 
 def test_cli_errors(tmp_path: Path) -> None:
-    runner = CliRunner()
+    runner = WideRunner()
     res = runner.invoke(app, ["analyze", "--out", str(tmp_path)])
     assert res.exit_code != 0 and "exactly one" in res.output
     (tmp_path / "e").mkdir()

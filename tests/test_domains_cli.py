@@ -5,13 +5,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from typer.testing import CliRunner
-
 from cfteach.cli import app
+from cli_runner import WideRunner
 
 
 def test_domains_table() -> None:
-    res = CliRunner().invoke(app, ["domains"])
+    res = WideRunner().invoke(app, ["domains"])
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()
     assert lines[0].split()[0] == "domain"
@@ -22,7 +21,7 @@ def test_domains_table() -> None:
 
 
 def test_domains_json() -> None:
-    res = CliRunner().invoke(app, ["domains", "--json"])
+    res = WideRunner().invoke(app, ["domains", "--json"])
     assert res.exit_code == 0, res.output
     data = {d["name"]: d for d in json.loads(res.output)}
     assert list(data) == ["delivery", "tiles", "skateboard"]
@@ -36,11 +35,11 @@ def test_domains_user_file_and_errors(tmp_path: Path) -> None:
     src = Path(__file__).resolve().parents[1] / "src/cfteach/domains/data/tiles.toml"
     good = tmp_path / "mine.toml"
     good.write_text(src.read_text().replace('name = "tiles"', 'name = "mine"'))
-    res = CliRunner().invoke(app, ["domains", str(good), "--json"])
+    res = WideRunner().invoke(app, ["domains", str(good), "--json"])
     assert res.exit_code == 0, res.output
     assert json.loads(res.output)[0]["name"] == "mine"
     bad = tmp_path / "bad.toml"
     bad.write_text(src.read_text().replace("[agent]\nstart = [1, 1]", "[agent]\nstart = [9, 1]"))
-    res = CliRunner().invoke(app, ["domains", str(bad)])
+    res = WideRunner().invoke(app, ["domains", str(bad)])
     assert res.exit_code == 2
     assert f"{bad}: agent.start" in res.output and "off the 5x5 grid" in res.output

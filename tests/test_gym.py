@@ -174,6 +174,9 @@ def test_user_domains_get_environments_and_generic_pictures():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped)
+        check_env(cgym.make(dom, "random", observation="state", render_mode="ansi"))
+        check_env(gymnasium.make(cgym.ENV_ID, domain=dom).unwrapped)  # no env_code: first
+    assert cgym.state_space_nvec(dom) == [2, 2, 5, 3, 5, 3, 2, 2]  # bits, agent, key, coin
     env = cgym.make(dom, "11", render_mode="ansi")
     env.reset()
     rows = env.render().strip().splitlines()[1:-1]
@@ -215,3 +218,130 @@ def test_builtin_ids_are_registered():
     assert env.unwrapped.domain.name == "delivery"
     assert env.unwrapped.instance.env_code == (0, 0, 0, 0, 0, 1)
     assert gymnasium.make("cfteach/Skateboard-v0", env_code=7).unwrapped.domain.name == "skateboard"
+
+
+# ------------------------------------------------- Gymnasium conventions (issue 15, part 1)
+@pytest.mark.parametrize("env_id", sorted(cgym.BUILTIN_IDS.values()))
+def test_registered_ids_work_without_arguments_and_pass_the_checker(env_id):
+    env = gymnasium.make(env_id)  # used to raise TypeError: missing 'env_code'
+    base = env.unwrapped
+    assert base.instance.index == 0 and base.instance.env_code == (0,) * base.domain.n_bits
+    assert env.reset(seed=3)[1]["state"] == base.instance.state_to_json(
+        base.instance.initial_state)
+    assert env.spec.id == env_id and env.spec.max_episode_steps == cgym.MAX_EPISODE_STEPS
+    assert base.metadata["render_fps"] > 0
+    assert base.action_meanings == base.get_action_meanings() == list(base.domain.actions)
+    assert base.actions.pickup == 4 and base.actions(3).name == "right"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(base)
+        check_env(gymnasium.make(env_id, observation="state", env_code="random").unwrapped)
+
+
+def test_make_sets_the_spec_so_the_checker_does_not_warn():
+    env = cgym.make("tiles", 0)
+    assert env.spec is not None and env.spec.id == cgym.ENV_ID
+    assert env.spec.kwargs["domain"] == "tiles" and env.spec.max_episode_steps == 100
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # "not having a spec" was a warning before
+        check_env(env)
+
+
+def test_time_limit_of_the_spec_truncates_like_the_env():
+    env = gymnasium.make("cfteach/Tiles-v0", max_episode_steps=3, max_steps=3)
+    env.reset()
+    for _ in range(2):
+        assert env.step(0)[3] is False
+    assert env.step(0)[3] is True
+
+
+def _fresh_python(code):
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.split()
+
+
+def test_ids_resolve_without_importing_cfteach_gym_first():
+    out = _fresh_python(
+        "import sys, gymnasium\n"
+        "env = gymnasium.make('cfteach.gym:cfteach/Skateboard-v0')\n"
+        "print('cfteach.gym' in sys.modules, env.spec.id, env.unwrapped.domain.name)")
+    assert out == ["True", "cfteach/Skateboard-v0", "skateboard"]
+
+
+def test_the_gymnasium_envs_entry_point_registers_the_ids():
+    out = _fresh_python(
+        "from importlib.metadata import entry_points\n"
+        "import gymnasium\n"
+        "(ep,) = [e for e in entry_points(group='gymnasium.envs') if e.name == 'cfteach']\n"
+        "ep.load()()\n"
+        "print(sorted(i for i in gymnasium.registry if i.startswith('cfteach/')))")
+    assert out == ["['cfteach/Delivery-v0',", "'cfteach/GridWorld-v0',",
+                   "'cfteach/Skateboard-v0',", "'cfteach/Tiles-v0']"]
+
+
+def test_state_observations_span_instances_and_restart_any_episode():
+    env = cgym.make("delivery", "random", observation="state")
+    codes = set()
+    for seed in range(8):
+        obs, info = env.reset(seed=seed)
+        assert env.observation_space.contains(obs)
+        bits, state = obs[:6], tuple(obs[6:])
+        assert "".join(map(str, bits)) == info["env_code"]
+        assert state == env.instance.initial_state == env.state_of(obs)
+        codes.add(info["env_code"])
+    assert len(codes) > 3
+    assert [env.reset(seed=s)[1]["env_code"] for s in range(8)] == [
+        env.reset(seed=s)[1]["env_code"] for s in range(8)]
+    # what a Minari episode stores: the options as strings
+    start = '{"agent": [3, 1], "passenger": [4, 2], "carrying": false, "station": false}'
+    obs, info = env.reset(options={"env_code": "000010", "start_state": start})
+    assert obs.tolist() == [0, 0, 0, 0, 1, 0, 3, 1, 4, 2, 0, 0]
+    obs, r, *_ = env.step(RIGHT)  # leaves the mud at (3, 1): mud + step
+    assert obs.tolist()[6:8] == [4, 1] and r == pytest.approx(-4 / DELIVERY_NORM, abs=1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(cgym.make("skateboard", "101", observation="state"))
+
+
+def test_index_observations_refuse_to_switch_instance():
+    env = cgym.make("delivery", "000010")
+    env.reset(options={"env_code": "000010"})  # its own instance is fine
+    with pytest.raises(ValueError, match='switches instance only with observation="state"'):
+        env.reset(options={"env_code": "000001"})
+    with pytest.raises(ValueError, match='needs observation="state"'):
+        cgym.make("delivery", "random")
+    with pytest.raises(ValueError, match="observation 'pixels' is not one of"):
+        cgym.make("delivery", observation="pixels")
+    with pytest.raises(ValueError, match="expected 'random', a State tuple or a JSON object"):
+        env.reset(options={"start_state": "{not json"})
+
+
+def _play_key_codes(env):
+    """The key-code table `gymnasium.utils.play.play` builds from get_keys_to_action()."""
+    return {tuple(sorted(ord(k) if isinstance(k, str) else k for k in combo)): a
+            for combo, a in env.get_keys_to_action().items()}
+
+
+def test_keyboard_play_uses_the_study_keys():
+    env = cgym.make("delivery", "000000", render_mode="rgb_array")
+    keys = _play_key_codes(env)
+    k_up, k_down, k_left, k_right = 1073741906, 1073741905, 1073741904, 1073741903  # pygame
+    assert keys == {(k_up,): UP, (k_down,): DOWN, (k_left,): LEFT, (k_right,): RIGHT,
+                    (ord("p"),): PICKUP, (ord("d"),): DROPOFF}
+    env.reset()  # agent (2, 1), package (4, 2): right, right, up, p picks it up
+    for code in (k_right, k_right, k_up, ord("p")):
+        *_, info = env.step(keys[(code,)])
+    assert info["state"]["carrying"] is True
+    # a user domain listing its actions in another order keeps the keys on the names
+    from cfteach import domains
+
+    data = {**USER_DOMAIN, "domain": {**USER_DOMAIN["domain"],
+                                      "actions": ["right", "pickup", "up", "left"]}}
+    dom = domains.from_dict(data, source="test-keys-order")
+    user = _play_key_codes(cgym.make(dom, "00"))
+    assert user == {(k_right,): 0, (ord("p"),): 1, (k_up,): 2, (k_left,): 3}

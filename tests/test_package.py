@@ -1,9 +1,8 @@
 """The package imports and the console script answers."""
 
-from typer.testing import CliRunner
-
 import cfteach
 from cfteach.cli import app
+from cli_runner import WideRunner
 
 
 def test_version_is_set() -> None:
@@ -11,7 +10,7 @@ def test_version_is_set() -> None:
 
 
 def test_cli_help_lists_usage() -> None:
-    result = CliRunner().invoke(app, ["--help"])
+    result = WideRunner().invoke(app, ["--help"])
     assert result.exit_code == 0
     assert "Usage" in result.output
 

@@ -6,11 +6,11 @@ import json
 import xml.etree.ElementTree as ET
 
 from PIL import Image
-from typer.testing import CliRunner
 
 from cfteach.cli import app
+from cli_runner import WideRunner
 
-runner = CliRunner()
+runner = WideRunner()
 
 
 def test_state_prints_text_and_writes_pictures(tmp_path):

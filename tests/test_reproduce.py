@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from cfteach import domains
 from cfteach.cli import app
+from cli_runner import WideRunner
 
 pytestmark = pytest.mark.slow
 
@@ -102,7 +102,7 @@ def check_common(data, schema):
 @pytest.fixture(scope="module")
 def out(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("reproduce")
-    result = CliRunner().invoke(
+    result = WideRunner().invoke(
         app, ["reproduce", "--out", str(out), "--domains", "skateboard", "--seed", "0"]
     )
     assert result.exit_code == 0, result.output + repr(result.exception)
@@ -198,7 +198,7 @@ def test_report_images_all_resolve(out):
 
 def test_report_only_rebuilds_from_the_json(out):
     (out / "index.html").unlink()
-    result = CliRunner().invoke(app, ["reproduce", "--out", str(out), "--report-only"])
+    result = WideRunner().invoke(app, ["reproduce", "--out", str(out), "--report-only"])
     assert result.exit_code == 0, result.output
     html = (out / "index.html").read_text(encoding="utf-8")
     run = json.loads((out / "run.json").read_text())
@@ -208,7 +208,7 @@ def test_report_only_rebuilds_from_the_json(out):
 
 
 def test_unknown_domain_is_a_clear_error(tmp_path):
-    result = CliRunner().invoke(app, ["reproduce", "--out", str(tmp_path), "-d", "nowhere"])
+    result = WideRunner().invoke(app, ["reproduce", "--out", str(tmp_path), "-d", "nowhere"])
     assert result.exit_code != 0
     assert "nowhere" in result.output
 
@@ -276,12 +276,12 @@ def test_a_user_domain_file_goes_through_the_whole_job(tmp_path):
     path = tmp_path / "keys.toml"
     path.write_text(USER_TOML, encoding="utf-8")
     out = tmp_path / "out"
-    result = CliRunner().invoke(app, ["reproduce", "--out", str(out), "-d", str(path)])
+    result = WideRunner().invoke(app, ["reproduce", "--out", str(out), "-d", str(path)])
     assert result.exit_code == 0, result.output + repr(result.exception)
     run = json.loads((out / "run.json").read_text())
     assert run["domains"] == ["keys"] and run["domain_files"] == {"keys": str(path.resolve())}
     (out / "index.html").unlink()
-    result = CliRunner().invoke(app, ["reproduce", "--out", str(out), "--report-only"])
+    result = WideRunner().invoke(app, ["reproduce", "--out", str(out), "--report-only"])
     assert result.exit_code == 0, result.output + repr(result.exception)
     parser = _Srcs()
     parser.feed((out / "index.html").read_text(encoding="utf-8"))

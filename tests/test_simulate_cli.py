@@ -5,10 +5,10 @@ from __future__ import annotations
 import json
 
 import pytest
-from typer.testing import CliRunner
 
 from cfteach.cli import app
 from cfteach.domains import load
+from cli_runner import WideRunner
 from simulate_fixtures import make_curriculum, make_tests
 
 
@@ -25,7 +25,7 @@ def _folder(tmp_path):
 def test_simulate_command_writes_results(tmp_path) -> None:
     src = _folder(tmp_path)
     out = tmp_path / "out"
-    res = CliRunner().invoke(app, ["simulate", "--domains", "tiles", "--conditions",
+    res = WideRunner().invoke(app, ["simulate", "--domains", "tiles", "--conditions",
                                    "proposed,none", "--learner", "counterfactual",
                                    "--learners", "4", "--workers", "1", "--from", str(src),
                                    "--out", str(out)])
@@ -38,7 +38,7 @@ def test_simulate_command_writes_results(tmp_path) -> None:
 
 def test_simulate_command_names_bad_input(tmp_path) -> None:
     src = _folder(tmp_path)
-    runner = CliRunner()
+    runner = WideRunner()
     res = runner.invoke(app, ["simulate", "-d", "tiles", "-c", "proposed,telepathy",
                               "--from", str(src), "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "unknown condition(s) ['telepathy']" in res.output
@@ -54,7 +54,7 @@ def test_simulate_command_names_bad_input(tmp_path) -> None:
 def test_simulate_random_four_feature_domain_end_to_end(tmp_path) -> None:
     """n > 3 features through teaching, test selection, learners and the summary."""
     out = tmp_path / "out"
-    res = CliRunner().invoke(app, ["simulate", "-d", "random:5x5:f4:n8:s1", "-c",
+    res = WideRunner().invoke(app, ["simulate", "-d", "random:5x5:f4:n8:s1", "-c",
                                    "proposed,none", "-l", "counterfactual", "-n", "4",
                                    "--workers", "1", "--out", str(out)])
     assert res.exit_code == 0, res.output

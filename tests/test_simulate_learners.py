@@ -161,7 +161,9 @@ def test_bad_input_is_named() -> None:
         learner_model("genius")
     with pytest.raises(ValueError, match="at least one learner"):
         Learners(dom, "irl", 0)
-    assert set(LEARNER_MODELS) == {"counterfactual", "irl", "noisy"}
+    assert set(LEARNER_MODELS) == {"counterfactual", "irl", "noisy", "inattentive"}
+    with pytest.raises(ValueError, match="p_absorb"):
+        learner_model("inattentive", p_absorb=0.0)
 
 
 def test_more_than_three_features_end_to_end() -> None:

@@ -7,6 +7,7 @@ import csv
 import functools
 import json
 import math
+import time
 import uuid
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from cfteach.study.build import LEVELS, toy_sources
 from cfteach.study.config import load_study
 from cfteach.study.export import COLUMNS, export_csv
 from cfteach.study.server import create_app
+from cfteach.study.steps import demo_required_ms
 
 db_url = test_study_support.db_url  # shared fixtures
 toy_study = test_study_support.toy_study
@@ -147,7 +149,11 @@ def test_reload_state_is_stable_and_events_are_counted(client: TestClient) -> No
 
 def test_prolific_resume_preview_and_bad_ids(client: TestClient) -> None:
     first = client.post("/api/session", json=PARAMS).json()
-    again = client.post("/api/session", json={**PARAMS, "session_id": "X2"}).json()
+    # The same Prolific SESSION_ID (the same link, any browser) resumes; so does the token.
+    again = client.post("/api/session", json=PARAMS).json()
+    assert again["token"] == first["token"] and again["resumed"] is True
+    again = client.post("/api/session", json={**PARAMS, "session_id": None,
+                                              "token": first["token"]}).json()
     assert again["token"] == first["token"] and again["resumed"] is True
     other = client.post("/api/session", json={**PARAMS, "prolific_pid": "another1"}).json()
     assert other["token"] != first["token"]
@@ -226,8 +232,9 @@ def test_tampered_replayed_and_oversized_requests_change_nothing(client: TestCli
     assert snapshot() == st
     # Tests: moves that do not finish the game, or unknown actions, are refused.
     i = st["step_index"]
-    for k in range(len(st["step"]["demos"])):
+    for k, demo in enumerate(st["step"]["demos"]):
         _event(client, tok, i, "demo_play_start", {"demo_index": k})
+        time.sleep(demo_required_ms(len(demo["actions"]), st["step"]["step_ms"]) / 1000)
         _event(client, tok, i, "demo_play_end", {"demo_index": k, "completed": True,
                                                  "watch_ms": 5})
     assert _event(client, tok, i, "continue").status_code == 200

@@ -98,13 +98,21 @@ class Participant:
         for m in moves:
             self.page.keyboard.press(KEYS[m])
 
+    def before_step(self, kind: str) -> None:
+        """Called once per page, before it is acted on (subclasses inject faults here)."""
+
     def run(self, *, reload_on: set[str] = frozenset(), stop_at: str | None = None) -> None:
         page = self.page
         reloaded: set[str] = set()
+        seen: set[str] = set()
         while True:
             kind = self.step()
             if kind == stop_at:
                 return
+            index = page.get_attribute("main", "data-step-index")
+            if index not in seen and kind not in reload_on - reloaded:
+                seen.add(index)
+                self.before_step(kind)
             if kind in reload_on and kind not in reloaded:
                 reloaded.add(kind)
                 self._reload_mid(kind)
@@ -185,13 +193,22 @@ class Participant:
         weights = self.study["domain_info"][st["domain"]]["weights"]
         moves = best_path(test["game"], weights) if st["trial"] % 2 else shortest_path(st["game"])
         assert page.is_disabled("#next")
-        page.click("#board")
+        conf = 1 + (st["trial"] % 5)
+        how = st["trial"] % 3
+        if how == 1:
+            page.click("#board")
+        elif how == 2:  # answer first: the radio button keeps the focus, yet keys play the game
+            page.click(f"input[name=confidence][value='{conf}']")
+            assert page.evaluate("document.activeElement.name") == "confidence"
+        # else: no click at all, right after the last game's Submit
         before = page.evaluate("window.scrollY")
         self.press(moves)
         assert page.evaluate("window.scrollY") == before  # arrow keys never scroll
         page.wait_for_selector("#board[data-ended='true']")
         assert page.get_attribute("#board", "data-moves") == " ".join(moves)
-        conf = 1 + (st["trial"] % 5)
+        if how == 2:
+            assert page.evaluate("document.activeElement.name") == "confidence"
+            assert page.is_checked(f"input[name=confidence][value='{conf}']")
         page.check(f"input[name=confidence][value='{conf}']")
         self.played[key] = moves
         self.confidence[key] = conf
@@ -223,13 +240,17 @@ def _rows(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-def _run(browser, toy_study: Path, tmp_path: Path, **kw) -> tuple[Participant, Path, str]:  # noqa: ANN001
+def _run(browser, toy_study: Path, tmp_path: Path, *, make=Participant,  # noqa: ANN001
+         prepare=None, **kw) -> tuple[Participant, Path, str]:  # noqa: ANN001
+    """One participant through the whole study; `prepare(page)` runs before the first load."""
     db = f"sqlite:///{tmp_path / 'e2e.db'}"
     app = create_app(toy_study, db, researcher_token="tok", seed=11)
     study = load_study(toy_study)
     with running(app) as base:
         ctx = browser.new_context(viewport={"width": 1000, "height": 500})
         page = ctx.new_page()
+        if prepare is not None:
+            prepare(page)
         errors: list[str] = []
         page.on("pageerror", lambda e: errors.append(str(e)))
         redirected: list[str] = []
@@ -237,7 +258,7 @@ def _run(browser, toy_study: Path, tmp_path: Path, **kw) -> tuple[Participant, P
             redirected.append(route.request.url),
             route.fulfill(status=200, body="<p>prolific</p>", content_type="text/html")))
         page.goto(f"{base}/?PROLIFIC_PID={PID}&STUDY_ID=st1&SESSION_ID=se1")
-        who = Participant(page, base, study)
+        who = make(page, base, study)
         who.run(**kw)
         assert page.text_content("#code") == "C0MPL3TE"
         page.wait_for_url("https://app.prolific.com/**", timeout=10_000)
@@ -357,18 +378,31 @@ def test_browser_practice_lockout_after_three_failures(browser, toy_study: Path,
         who = Participant(page, base, load_study(toy_study))
         who.run(stop_at="practice")
         st = who.state()["step"]
-        # A wasted step out and back, then the best route: 10% short of the target.
+        # A wasted step out and back, then the best route: 10% short of the target (twice);
+        # then steps to and fro until the energy is gone.
         wasteful = ["down", "up", *best_path(st["game"], st["weights"])]
         page.click("#board")
         for attempt in range(3):
             if attempt:
                 page.keyboard.press("r")
                 page.wait_for_selector("#board[data-moves='']")
-            who.press(wasteful)
+                assert page.text_content("#practice-msg") == ""  # the last verdict is gone
+            who.press(wasteful if attempt < 2 else ["down", "up"] * 10)
             if attempt < 2:
                 page.wait_for_selector(f"#energy:has-text('Attempts remaining: {2 - attempt}')")
-                assert "less than 50% energy" in page.text_content("#practice-msg")
-        page.wait_for_selector("#practice-msg:has-text(\"don't qualify\")")
+            else:
+                page.wait_for_selector("#practice-msg:has-text(\"don't qualify\")")
+            # What was reached and what was needed, in the message and on the board (which
+            # no longer says "Game completed!" next to a failure).
+            msg = page.text_content("#practice-msg")
+            banner = page.text_content("#board [data-kind='banner']")
+            if attempt < 2:
+                assert "with 40% energy left" in msg and "finish with 50%" in msg, msg
+                assert banner == "Not enough energy40% left, 50% needed", banner
+            else:
+                assert "ran out of energy (0% left)" in msg and "with 50% energy" in msg, msg
+                assert banner == "Out of energy0% left, 50% needed", banner
+            assert "fail" in page.get_attribute("#board [data-kind='banner']", "class")
         page.reload()  # a reload cannot bring the practice back
         page.wait_for_selector("main[data-step='screened_out']")
         assert page.text_content("#code") == "SCR33N"

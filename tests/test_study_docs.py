@@ -7,9 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from typer.testing import CliRunner
-
 from cfteach.cli import app
+from cli_runner import WideRunner
 from doc_examples import code_blocks, run_script
 
 
@@ -21,7 +20,7 @@ def test_doc_example_runs(tmp_path: Path) -> None:
 
 
 def test_cli_init_progress_export(tmp_path: Path) -> None:
-    runner = CliRunner()
+    runner = WideRunner()
     study = tmp_path / "study"
     r = runner.invoke(app, ["study", "init", "--toy", "--out", str(study)])
     assert r.exit_code == 0, r.output
@@ -73,7 +72,7 @@ def test_cli_init_from_reproduce_layout(tmp_path: Path) -> None:
         for cond, cur in src.curricula.items():
             (folder / f"{cond}.json").write_text(json.dumps(cur))
         (folder / "tests.json").write_text(json.dumps(src.tests))
-    r = CliRunner().invoke(app, ["study", "init", "--from", str(src_dir), "--out",
+    r = WideRunner().invoke(app, ["study", "init", "--from", str(src_dir), "--out",
                                  str(tmp_path / "study"), "--completion-code", "ABC123"])
     assert r.exit_code == 0, r.output
     study = load_study(tmp_path / "study")
@@ -81,7 +80,7 @@ def test_cli_init_from_reproduce_layout(tmp_path: Path) -> None:
     assert study["completion"]["completed"] == "ABC123"
     assert study["domain_info"]["tiles"]["keys"] == ["up", "down", "left", "right"]
     (src_dir / "tiles" / "proposed.json").unlink()
-    r = CliRunner().invoke(app, ["study", "init", "--from", str(src_dir), "--out",
+    r = WideRunner().invoke(app, ["study", "init", "--from", str(src_dir), "--out",
                                  str(tmp_path / "study2")])
     assert r.exit_code != 0 and "proposed.json" in r.output
 
@@ -124,12 +123,12 @@ def test_cli_init_consent_file(tmp_path: Path) -> None:
 
     good = tmp_path / "consent.html"
     good.write_text("<p>Our consent text.</p>", encoding="utf-8")
-    r = CliRunner().invoke(app, ["study", "init", "--toy", "--out", str(tmp_path / "s"),
+    r = WideRunner().invoke(app, ["study", "init", "--toy", "--out", str(tmp_path / "s"),
                                  "--consent", str(good)])
     assert r.exit_code == 0, r.output
     assert load_study(tmp_path / "s")["consent_html"] == "<p>Our consent text.</p>"
     bad = tmp_path / "bad.html"
     bad.write_text("<p>x</p><SCRIPT>alert(1)</script>", encoding="utf-8")
-    r = CliRunner().invoke(app, ["study", "init", "--toy", "--out", str(tmp_path / "t"),
+    r = WideRunner().invoke(app, ["study", "init", "--toy", "--out", str(tmp_path / "t"),
                                  "--consent", str(bad)])
     assert r.exit_code != 0 and "may not contain <script>" in r.output

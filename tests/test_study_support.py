@@ -34,9 +34,12 @@ def fresh_postgres() -> str:
 
 @pytest.fixture(scope="session")
 def toy_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A three-domain toy study with 2 short demos per condition and 6 tests per domain."""
+    """A three-domain toy study with 2 short demos per condition and 6 tests per domain.
+
+    15 ms per demonstration step: every toy replay (9 to 13 steps) is shorter than the
+    server's tolerance, so bots need not wait (tests of the timing use their own study)."""
     out = tmp_path_factory.mktemp("toy_study")
-    init_study(out, toy_sources(), demo_step_ms=20, completion_code="C0MPL3TE",
+    init_study(out, toy_sources(), demo_step_ms=15, completion_code="C0MPL3TE",
                screened_out_code="SCR33N")
     return out
 

@@ -5,11 +5,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from typer.testing import CliRunner
-
 from cfteach.cli import app
+from cli_runner import WideRunner
 
-runner = CliRunner()
+runner = WideRunner()
 
 
 def test_teach_then_tests(tmp_path: Path) -> None:

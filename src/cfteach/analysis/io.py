@@ -14,7 +14,7 @@ import pandas as pd
 
 CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
 DIFFICULTIES = ("low", "medium", "high")
-STATUSES = ("completed", "screened_out", "abandoned", "in_progress")
+STATUSES = ("completed", "screened_out", "declined", "abandoned", "in_progress")
 LIKERT_ITEMS = ("informativeness", "mental_effort")
 CF_CONDITIONS = frozenset({"counterfactual_only", "proposed"})
 FS_CONDITIONS = frozenset({"feature_only", "proposed"})
@@ -39,6 +39,7 @@ SCHEMA: dict[str, dict[str, tuple[object, bool]]] = {
         "age": ("int", False),
         "gender": ("str", False),
         "education": ("str", False),
+        "study_version": ("str", False),
     },
     "test_responses.csv": {
         "participant_id": ("str", True),
@@ -56,6 +57,7 @@ SCHEMA: dict[str, dict[str, tuple[object, bool]]] = {
         "optimal": ("bool", True),
         "optimal_length": ("int", False),
         "time_ms": ("int", False),
+        "client_time_ms": ("int", False),
         "confidence": ("int", False),
     },
     "likert.csv": {
@@ -74,6 +76,7 @@ SCHEMA: dict[str, dict[str, tuple[object, bool]]] = {
         "plays_completed": ("int", False),
         "replays": ("int", False),
         "watch_ms": ("int", False),
+        "client_watch_ms": ("int", False),
     },
 }
 
@@ -259,11 +262,14 @@ DESCRIPTIONS = {
     "optimal_reward": "reward of the robot's optimal trajectory",
     "optimal": "1 if reward equals the optimal reward (M1)",
     "optimal_length": "number of actions of the robot's optimal answer",
-    "time_ms": "ms from the test being shown to its submission",
+    "time_ms": "ms from the test being shown to its submission (server clock)",
+    "client_time_ms": "the same time as the browser reported it (not trusted)",
+    "study_version": "content hash of the study file the session ran on",
     "confidence": "confidence rating 1..5 (M4)",
     "item": "Likert item (M2 informativeness, M3 mental effort)",
     "value": "Likert rating 1..5",
-    "plays_completed": "full plays of this demonstration",
+    "plays_completed": "full plays of this demonstration (timed by the server)",
     "replays": "plays started beyond the first",
-    "watch_ms": "total watching time in ms",
+    "watch_ms": "total watching time in ms (server clock)",
+    "client_watch_ms": "the same total as the browser reported it (not trusted)",
 }

@@ -150,6 +150,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                 "age": int(np.clip(round(rng.normal(28.4, 9.5)), 18, 69)),
                 "gender": rng.choice(["male", "female", "non-binary"], p=[0.67, 0.32, 0.01]),
                 "education": rng.choice(["high school", "bachelor", "master", "doctorate"]),
+                "study_version": "synthetic",
             }
         )
         if kind == "screened_out":
@@ -171,6 +172,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                         "watch_ms": int(length_ms * (1 + replays) + rng.integers(0, 800)),
                     }
                 )
+                demos[-1]["client_watch_ms"] = demos[-1]["watch_ms"]
             base_inf = 3.3 - 0.2 * cf
             base_eff = 2.4 + cfg.effort_cf * cf
             likert.append(
@@ -243,6 +245,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                         "confidence": int(conf[i]),
                     }
                 )
+                tests[-1]["client_time_ms"] = tests[-1]["time_ms"]
     return StudyExport(
         pd.DataFrame(parts),
         pd.DataFrame(tests),

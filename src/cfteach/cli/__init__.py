@@ -22,6 +22,7 @@ _COMMAND_MODULES = (
     "simulate_cmd",
     "study_cmd",
     "analyze_cmd",
+    "export_cmd",
 )
 
 

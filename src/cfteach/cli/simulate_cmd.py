@@ -20,11 +20,13 @@ def register(app: typer.Typer) -> None:
                  "random:WxH:fF:nN:sS. Default: delivery,tiles,skateboard."),
         conditions: list[str] = typer.Option(
             None, "--conditions", "-c",
-            help="baseline, feature_only, counterfactual_only, proposed, and 'none' "
-                 "(no demonstrations). Default: all five."),
+            help="baseline, feature_only, counterfactual_only, proposed, closed_loop "
+                 "(adaptive teaching; adds the proposed_equal_budget control) and 'none' "
+                 "(no demonstrations). Default: the paper's four and none."),
         learner: list[str] = typer.Option(
             None, "--learner", "-l",
-            help="Learner models: counterfactual, irl, noisy, each optionally with "
+            help="Learner models: counterfactual, irl, noisy, inattentive, each optionally "
+                 "with "
                  "field=value settings, e.g. noisy:temperature=0.1:human_models=3. "
                  "Default: counterfactual,noisy."),
         learners: int = typer.Option(32, "--learners", "-n", min=1,
@@ -48,6 +50,10 @@ def register(app: typer.Typer) -> None:
                                            "local cluster)."),
         chunk: int = typer.Option(16, "--chunk", min=1,
                                   help="Learners per work chunk (results depend on it)."),
+        teacher: list[str] = typer.Option(
+            None, "--teacher",
+            help="closed_loop teacher settings as field=value (comma-separated or repeated), "
+                 "e.g. p_learn=0.7,max_items=30; see docs/closed-loop.md."),
         out: Path = typer.Option(Path("out/simulate"), "--out", "-o", help="Output folder."),
     ) -> None:
         """Teach simulated learners every condition's curriculum and test them: proportion
@@ -58,12 +64,14 @@ def register(app: typer.Typer) -> None:
         from cfteach.simulate.sweep import run_sweep
 
         try:
+            settings = _teacher_settings(split_list(teacher))
             result = run_sweep(
                 split_list(domains) or ["delivery", "tiles", "skateboard"],
                 split_list(conditions), split_list(learner), n_learners=learners, seeds=seeds,
                 include_candidates=candidates, source=source, profile=profile,
                 human_models=human_models, seed=seed, backend=backend, n_workers=workers,
-                scheduler=scheduler, chunk_learners=chunk, progress=sys.stderr.isatty())
+                scheduler=scheduler, chunk_learners=chunk, progress=sys.stderr.isatty(),
+                teacher=settings)
         except (ValueError, FileNotFoundError, ImportError, ConnectionError) as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(2) from None
@@ -71,6 +79,33 @@ def register(app: typer.Typer) -> None:
         _print_summary(summ)
         typer.echo(f"\nwrote {out}/results.json, answers.csv, beliefs.csv and "
                    f"{len(summ['figures'])} figures")
+
+
+def _teacher_settings(pairs: list[str] | None) -> dict:
+    """``field=value`` pairs to typed closed-loop settings (ValueError names a bad pair)."""
+    import dataclasses
+
+    from cfteach.closedloop import TeacherSettings
+
+    types = {f.name: f.type for f in dataclasses.fields(TeacherSettings)}
+    out: dict = {}
+    for pair in pairs or []:
+        key, eq, value = pair.partition("=")
+        if not eq or key not in types:
+            raise ValueError(f"bad --teacher setting {pair!r}: write field=value with a field "
+                             f"among {', '.join(types)}")
+        try:
+            if key == "zpd_band":
+                lo, hi = value.split("/")
+                out[key] = (float(lo), float(hi))
+            elif types[key] in ("int", int):
+                out[key] = int(value)
+            else:
+                out[key] = float(value)
+        except ValueError:
+            raise ValueError(f"bad value {value!r} for --teacher {key} (zpd_band is "
+                             f"written low/high, e.g. 0.3/1.0)") from None
+    return out
 
 
 def _print_summary(summ: dict) -> None:
@@ -91,6 +126,17 @@ def _print_summary(summ: dict) -> None:
                 f" {c['proportion_optimal']:.2f} [{c['ci_low']:.2f},{c['ci_high']:.2f}]".rjust(21)
                 if (c := cells.get(lv)) else " " * 21 for lv in ("low", "medium", "high"))
             typer.echo(f"  {cond:22s}{txt}")
+    regret = summ.get("regret", {})
+    items = summ.get("items_shown", {})
+    if regret:
+        typer.echo("\nregret on the post-teaching tests (mean [95% CI]; items shown: mean/max)")
+        for model, per_dom in regret.items():
+            for dom, per_cond in per_dom.items():
+                for cond, r in per_cond.items():
+                    it = items.get(model, {}).get(dom, {}).get(cond, {})
+                    typer.echo(f"  {model} {dom} {cond}: {r['mean']:.3f} "
+                               f"[{r['ci_low']:.3f},{r['ci_high']:.3f}]"
+                               + (f"  items {it['mean']:.1f}/{it['max']}" if it else ""))
     for h in summ["h1"]:
         if h["domain"] in ("all",) or len({x["domain"] for x in summ["h1"]}) == 1:
             rho = "n/a" if h["spearman_rho"] is None else f"{h['spearman_rho']:+.3f}"

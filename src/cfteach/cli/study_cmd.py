@@ -63,9 +63,12 @@ def init(
     title: str = typer.Option("Machine Teaching Study", help="Page title."),
     completion_code: str = typer.Option("COMPLETED", help="Prolific completion code."),
     screened_out_code: str = typer.Option("SCREENED", help="Code for screened-out people."),
+    no_consent_code: str = typer.Option("NOCONSENT", help="Code for people who decline "
+                                        "consent (Prolific asks them to return the study)."),
     completion_url: str = typer.Option("https://app.prolific.com/submissions/complete?cc=",
                                        help="Redirect target; the code is appended. '' = none."),
-    demo_step_ms: int = typer.Option(500, help="Milliseconds per demonstration step."),
+    demo_step_ms: int = typer.Option(500, help="Milliseconds per demonstration step (the "
+                                     "server counts a play once it lasted about steps x this)."),
     cutoff_minutes: float = typer.Option(30.0, help="An idle session stops counting toward "
                                          "its assignment cell after this long."),
     consent: Path | None = typer.Option(None, "--consent", help="HTML file with your consent "
@@ -84,7 +87,8 @@ def init(
     else:
         sources = teaching_sources(names, profile=profile, seed=seed, progress=True)
     path = init_study(out, sources, title=title, completion_code=completion_code,
-                      screened_out_code=screened_out_code, completion_url=completion_url,
+                      screened_out_code=screened_out_code, no_consent_code=no_consent_code,
+                      completion_url=completion_url,
                       demo_step_ms=demo_step_ms, cutoff_minutes=cutoff_minutes,
                       consent_html=_read_consent(consent))
     typer.echo(f"wrote {path}")
@@ -117,7 +121,8 @@ def progress(
     engine = make_engine(db or f"sqlite:///{study / 'study.db'}")
     upgrade(engine)
     p = StudyService(engine, load_study(study)).progress()
-    typer.echo(f"study {p['study_version']}: {p['status']} (previews: {p['previews']})")
+    typer.echo(f"study {p['study_version']}: {p['status']} (previews: {p['previews']}; in "
+               f"progress on older versions: {p['older_versions_in_progress']})")
     for c in p["cells"]:
         typer.echo(f"{c['condition']:<20} {c['domain_order']:<28} set {c['test_set']}  "
                    f"occupied {c['occupied']}  completed {c['completed']}")
@@ -151,23 +156,41 @@ def serve(
                                             "minute (0 = no limit)."),
     events_per_minute: int = typer.Option(600, help="Events per session per minute "
                                           "(0 = no limit)."),
+    auth_failures_per_minute: int = typer.Option(
+        60, help="Failed authentications (unknown or malformed session tokens, resumes "
+        "without proof) per client address per minute before that address gets 429 "
+        "(0 = no limit)."),
     forwarded_allow_ips: str = typer.Option(
-        "127.0.0.1", help="Reverse proxies whose X-Forwarded-For is trusted (comma-separated, "
-        "'*' = any), so rate limits see participants' addresses, not the proxy's."),
+        "", help="Reverse proxies whose X-Forwarded-For is trusted (comma-separated addresses "
+        "or networks, '*' = any; default: none, not even loopback), so rate limits see "
+        "participants' addresses, not the proxy's."),
+    new_version: bool = typer.Option(
+        False, "--new-version", help="Start even though sessions are in progress on an "
+        "older study file this database does not hold (they can then not finish)."),
 ) -> None:
     """Run the study server (participants open /?PROLIFIC_PID=...&STUDY_ID=...&SESSION_ID=...)."""
     import secrets
 
     import uvicorn
 
+    from cfteach.study.config import StudyError
+    from cfteach.study.livesrv import server_config
     from cfteach.study.server import create_app
 
     token = researcher_token or secrets.token_urlsafe(16)
-    app = create_app(study, db, researcher_token=token, sessions_per_minute=sessions_per_minute,
-                     events_per_minute=events_per_minute)
+    try:
+        app = create_app(study, db, researcher_token=token,
+                         sessions_per_minute=sessions_per_minute,
+                         events_per_minute=events_per_minute,
+                         auth_failures_per_minute=auth_failures_per_minute,
+                         new_version=new_version)
+    except StudyError as e:
+        typer.echo(f"Error: {e}", err=True)
+        raise typer.Exit(1) from None
     typer.echo(f"researcher page: http://{host}:{port}/researcher?token={token}", err=True)
-    uvicorn.run(app, host=host, port=port, log_level=os.environ.get("CFTEACH_LOG", "info"),
-                access_log=False, proxy_headers=True, forwarded_allow_ips=forwarded_allow_ips)
+    config = server_config(app, host=host, port=port, forwarded_allow_ips=forwarded_allow_ips,
+                           log_level=os.environ.get("CFTEACH_LOG", "info"))
+    uvicorn.Server(config).run()
 
 
 def register(app: typer.Typer) -> None:

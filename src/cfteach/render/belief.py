@@ -122,6 +122,78 @@ def _view_of(direction: np.ndarray) -> tuple[float, float]:
     return elev, azim
 
 
+LIFT = 1.01  # marks and arcs sit just above the sphere's surface
+
+
+def _auto_view(direction: np.ndarray | None) -> tuple[float, float]:
+    """(elevation, azimuth) looking at `direction` (a default when None or zero), slightly
+    from the side so the sphere reads as 3-D with the direction still in front."""
+    if direction is None or np.linalg.norm(direction) < 1e-9:
+        direction = np.array([1.0, -1.0, 0.6])
+    elev, azim = _view_of(direction)
+    return (max(-55.0, min(55.0, elev + 10.0)), azim + 18.0)
+
+
+def _eye(view: tuple[float, float]) -> np.ndarray:
+    """Unit vector towards the viewer for an (elevation, azimuth) in degrees."""
+    el, az = np.radians(view[0]), np.radians(view[1])
+    return np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+
+
+def _sphere_axes(ax: Any, title: str | None) -> tuple[Any, Any]:
+    """(figure, 3-D axes): the given axes, or a new square figure with one."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig = plt.figure(figsize=(3.6, 3.6), dpi=100)
+        ax = fig.add_subplot(projection="3d", computed_zorder=False)
+        fig.subplots_adjust(left=0, right=1, bottom=0, top=0.92 if title else 1.0)
+        return fig, ax
+    return ax.figure, ax
+
+
+def _draw_mesh(ax: Any, verts: np.ndarray, centres: np.ndarray, colors: np.ndarray,
+               eye: np.ndarray) -> None:
+    """One quad per mesh face; only the faces turned towards the viewer (orthographic view),
+    with colours as one float array (matplotlib's fast path)."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    quads = np.stack([verts[:-1, :-1], verts[1:, :-1], verts[1:, 1:], verts[:-1, 1:]], axis=2)
+    visible = centres @ eye > -0.08
+    mesh = Poly3DCollection(
+        quads[visible], facecolors=colors[visible], edgecolors="none", linewidths=0
+    )
+    mesh.set_antialiased(False)
+    ax.add_collection3d(mesh)
+
+
+def _finish_sphere(fig: Any, ax: Any, view: tuple[float, float],
+                   feature_names: Sequence[str], w_true: Sequence[float] | None) -> None:
+    """Axis stubs and names, the true weights (red star), the orthographic camera."""
+    eye = _eye(view)
+    labels: list[tuple[np.ndarray, str]] = []
+    for k, name in enumerate(list(feature_names)[:3]):
+        axis = np.eye(3)[k]
+        if axis @ eye > -0.2:  # a stub for each positive axis that is not hidden
+            ax.plot(*zip(1.0 * axis, 1.25 * axis, strict=True), color="#444444", lw=1.0)
+        labels.append((1.33 * axis, f"+{name}"))
+    if w_true is not None:
+        w = np.asarray(w_true, dtype=float)
+        w = w / np.linalg.norm(w)
+        if w @ eye > 0.02:
+            ax.scatter(*(w[:, None] * LIFT), color="#b71c1c", marker="*", s=110,
+                       depthshade=False)
+        ax.text(*(w * 1.18), "w*", color="#b71c1c", fontsize=9, ha="center")
+    ax.set_proj_type("ortho")
+    ax.view_init(elev=view[0], azim=view[1])
+    ax.set_box_aspect((1, 1, 1), zoom=1.4)
+    ax.set_xlim(-1.05, 1.05)
+    ax.set_ylim(-1.05, 1.05)
+    ax.set_zlim(-1.05, 1.05)
+    ax.set_axis_off()
+    _place_labels(fig, ax, labels)
+
+
 def plot_belief_sphere(
     belief: Any,
     *,
@@ -143,8 +215,6 @@ def plot_belief_sphere(
     import matplotlib
 
     matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     if resolution < 8:
         raise ValueError(f"resolution must be at least 8, got {resolution}")
@@ -158,34 +228,16 @@ def plot_belief_sphere(
             direction = np.asarray(w_true, dtype=float)
         elif in_b.any():
             direction = centres[in_b].mean(axis=0)
-        if direction is None or np.linalg.norm(direction) < 1e-9:
-            direction = np.array([1.0, -1.0, 0.6])
-        elev, azim = _view_of(direction)
-        # Look slightly from the side so the sphere reads as 3-D, the region still in front.
-        view = (max(-55.0, min(55.0, elev + 10.0)), azim + 18.0)
-    el, az = np.radians(view[0]), np.radians(view[1])
-    eye = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+        view = _auto_view(direction)
+    eye = _eye(view)
 
     def front(points: np.ndarray, margin: float = 0.02) -> np.ndarray:
         return points @ eye > margin
 
-    if ax is None:
-        fig = plt.figure(figsize=(3.6, 3.6), dpi=100)
-        ax = fig.add_subplot(projection="3d", computed_zorder=False)
-        fig.subplots_adjust(left=0, right=1, bottom=0, top=0.92 if title else 1.0)
-    else:
-        fig = ax.figure
-    # One quad per mesh face; only the faces turned towards the viewer (orthographic view),
-    # with colours as one float array (matplotlib's fast path).
-    quads = np.stack([verts[:-1, :-1], verts[1:, :-1], verts[1:, 1:], verts[:-1, 1:]], axis=2)
-    visible = front(centres, margin=-0.08)
-    mesh = Poly3DCollection(
-        quads[visible], facecolors=colors[visible], edgecolors="none", linewidths=0
-    )
-    mesh.set_antialiased(False)
-    ax.add_collection3d(mesh)
+    fig, ax = _sphere_axes(ax, title)
+    _draw_mesh(ax, verts, centres, colors, eye)
     # Only what faces the viewer is drawn on top of the surface (draw order = call order).
-    lift = 1.01
+    lift = LIFT
     for normals, color, style in ((ne, "#b8860b", "--"), (nb, "#1b5e20", "-")):
         if normals is None:
             continue
@@ -198,31 +250,87 @@ def plot_belief_sphere(
         s = s / np.linalg.norm(s, axis=1, keepdims=True)
         s = s[front(s)] * lift
         ax.scatter(s[:, 0], s[:, 1], s[:, 2], color="#d62728", s=12, depthshade=False)
-    labels: list[tuple[np.ndarray, str]] = []
-    for k, name in enumerate(list(feature_names)[:3]):
-        axis = np.eye(3)[k]
-        if axis @ eye > -0.2:  # a stub for each positive axis that is not hidden
-            ax.plot(*zip(1.0 * axis, 1.25 * axis, strict=True), color="#444444", lw=1.0)
-        labels.append((1.33 * axis, f"+{name}"))
-    if w_true is not None:
-        w = np.asarray(w_true, dtype=float)
-        w = w / np.linalg.norm(w)
-        if front(w[None])[0]:
-            ax.scatter(*(w[:, None] * lift), color="#b71c1c", marker="*", s=110, depthshade=False)
-        ax.text(*(w * 1.18), "w*", color="#b71c1c", fontsize=9, ha="center")
-    ax.set_proj_type("ortho")
-    ax.view_init(elev=view[0], azim=view[1])
-    ax.set_box_aspect((1, 1, 1), zoom=1.4)
-    ax.set_xlim(-1.05, 1.05)
-    ax.set_ylim(-1.05, 1.05)
-    ax.set_zlim(-1.05, 1.05)
-    ax.set_axis_off()
-    _place_labels(fig, ax, labels)
+    _finish_sphere(fig, ax, view, feature_names, w_true)
     extent = region_radius(nb)
     if zoom is None:
         zoom = extent is not None and extent < np.radians(10)
     if zoom and extent is not None:
         _zoom_inset(fig, nb, ne, w_true, samples, extent)
+    if title:
+        ax.set_title(title, fontsize=10)
+    return fig
+
+
+PARTICLE_COLOR = np.array([0.11, 0.37, 0.13])  # the belief boundary's dark green
+PRIOR_COLOR = np.array([0.30, 0.69, 0.31, 0.30])  # the belief green, faint: where w may lie
+
+
+def plot_particles_sphere(
+    particles: Any,
+    weights: Any,
+    *,
+    w_true: Sequence[float] | None = None,
+    feature_names: Sequence[str] = ("w0", "w1", "w2"),
+    title: str | None = None,
+    prior: Any = None,
+    ax: Any = None,
+    resolution: int = 72,
+    view: tuple[float, float] | None = None,
+) -> Any:
+    """Draw a particle belief (cfteach.closedloop) on the unit sphere as `plot_belief_sphere`
+    draws a region: dots in the belief's dark green, bigger and more opaque with more weight
+    (relative to an equal share, capped at 6 times it); the
+    prior region faintly shaded with its boundary; the true weights as the red star. Only the
+    side facing the viewer is drawn (the view centres on w*, else on the weighted mean;
+    `view` = (elevation, azimuth) in degrees fixes it, e.g. to compare panels).
+    Returns the Figure."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+
+    pts = np.asarray(particles, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"particles: the sphere picture needs 3 features, i.e. particles of "
+                         f"shape [P, 3]; got shape {pts.shape}")
+    w = np.asarray(weights, dtype=float)
+    if w.shape != (len(pts),):
+        raise ValueError(f"weights: expected shape [{len(pts)}] (one per particle), "
+                         f"got {w.shape}")
+    if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(w))) or np.any(w < 0):
+        raise ValueError("particles and weights must be finite, weights non-negative")
+    if resolution < 8:
+        raise ValueError(f"resolution must be at least 8, got {resolution}")
+    norms = np.linalg.norm(pts, axis=1, keepdims=True)
+    pts = pts / np.where(norms > 0, norms, 1.0)
+    nb = _normals(prior, "prior") if prior is not None else None
+    verts, centres = sphere_mesh(resolution)
+    colors = np.broadcast_to(OUTSIDE_COLOR, centres.shape[:-1] + (4,)).copy()
+    if nb is not None:
+        colors[inside(nb, centres)] = PRIOR_COLOR
+    total = w.sum()
+    if view is None:  # centre on w*, else on the weighted mean
+        direction = np.asarray(w_true, dtype=float) if w_true is not None else (
+            w @ pts / total if total > 0 else None)
+        view = _auto_view(direction)
+    eye = _eye(view)
+    fig, ax = _sphere_axes(ax, title)
+    _draw_mesh(ax, verts, centres, colors, eye)
+    if nb is not None:
+        for arc in boundary_arcs(nb):
+            vis = arc @ eye > 0.02
+            arc_pts = np.where(vis[:, None], arc * LIFT, np.nan)
+            ax.plot(arc_pts[:, 0], arc_pts[:, 1], arc_pts[:, 2], color="#1b5e20",
+                    linewidth=1.2, ls=":")
+    if total > 0:
+        rel = np.minimum(w * (len(w) / total), 6.0)  # 1 for an equally weighted particle
+        keep = (pts @ eye > 0.02) & (rel > 0)
+        order = np.argsort(rel[keep], kind="stable")  # heavy particles drawn last, on top
+        shown, rel = pts[keep][order] * LIFT, rel[keep][order]
+        rgba = np.column_stack([np.tile(PARTICLE_COLOR, (len(rel), 1)),
+                                np.clip(0.1 + 0.3 * rel, 0.1, 0.9)])
+        ax.scatter(shown[:, 0], shown[:, 1], shown[:, 2], s=1 + 5 * rel, c=rgba,
+                   edgecolors="none", depthshade=False)
+    _finish_sphere(fig, ax, view, feature_names, w_true)
     if title:
         ax.set_title(title, fontsize=10)
     return fig

@@ -1,7 +1,7 @@
 """Simulated learners: how a person might turn demonstrations into a belief over `w*`,
 and how they would then play an unseen test.
 
-Three models, each a `LearnerModel` (docs/simulate.md explains the reasoning):
+Four models, each a `LearnerModel` (docs/simulate.md explains the reasoning):
 
 * ``counterfactual`` — the paper's model of the human (§IV, Alg. 1). The belief is a region
   of the weight sphere, starting at the domain's prior. On each demonstration the learner
@@ -15,6 +15,10 @@ Three models, each a `LearnerModel` (docs/simulate.md explains the reasoning):
 * ``noisy`` — a bounded version of ``counterfactual``: only a few counterfactuals per
   demonstration (`human_models`, default 2, from the demonstration's start only — the
   paper's Eq. 4) and Boltzmann-rational test answers with a temperature.
+* ``inattentive`` — ``counterfactual``, but each demonstration it is shown (feedback
+  included) is learnt from only with probability `p_absorb` (default 0.5, an independent
+  draw per learner and demonstration). A teacher is never told which ones were missed: the
+  learner the closed-loop teacher (`cfteach.closedloop`) is built for.
 
 Answering a test: the learner samples one weight vector from its belief for the test's
 environment, plans with it (exact value iteration, `cfteach.mdp`) and plays from the test's
@@ -66,6 +70,7 @@ class LearnerModel:
     all_suffixes: bool = True
     temperature: float = 0.0
     unbounded: str = "loops"
+    p_absorb: float = 1.0  # chance each shown demonstration is learnt from (inattentive)
 
     def __post_init__(self) -> None:
         if self.constraints not in ("counterfactual", "one_step"):
@@ -75,6 +80,8 @@ class LearnerModel:
             raise ValueError(f"human_models must be at least 1, got {self.human_models}")
         if self.temperature < 0:
             raise ValueError(f"temperature must be >= 0, got {self.temperature}")
+        if not 0 < self.p_absorb <= 1:
+            raise ValueError(f"p_absorb must lie in (0, 1], got {self.p_absorb}")
         if self.unbounded not in UNBOUNDED_RULES:
             raise ValueError(f"unbounded must be one of {', '.join(UNBOUNDED_RULES)}, "
                              f"got {self.unbounded!r}")
@@ -84,11 +91,12 @@ LEARNER_MODELS: dict[str, LearnerModel] = {
     "counterfactual": LearnerModel("counterfactual"),
     "irl": LearnerModel("irl", constraints="one_step", human_models=1),
     "noisy": LearnerModel("noisy", human_models=2, all_suffixes=False, temperature=0.02),
+    "inattentive": LearnerModel("inattentive", p_absorb=0.5),
 }
 
 
 _FIELD_TYPES = {"human_models": int, "all_suffixes": bool, "temperature": float,
-                "unbounded": str}
+                "unbounded": str, "p_absorb": float}
 
 
 def parse_learner(spec: str) -> LearnerModel:
@@ -283,6 +291,11 @@ class Learners:
         rep = self.replay(demo)
         if not rep.finished or len(rep.actions) == 0:
             return np.zeros(self.n, dtype=np.int64)  # an unfinished demo proves nothing
+        # inattentive learners miss a demonstration with probability 1 - p_absorb (one
+        # independent draw per learner and demonstration; none for attentive models, so
+        # their random streams are unchanged)
+        absorbed = self.rng.random(self.n) < self.model.p_absorb if self.model.p_absorb < 1 \
+            else np.ones(self.n, dtype=bool)
         if self.model.constraints == "one_step":
             rows = self._one_step_constraints(rep)
             per = [rows] * self.n
@@ -291,7 +304,7 @@ class Learners:
         added = np.zeros(self.n, dtype=np.int64)
         for i, rows in enumerate(per):
             rows = rows[np.any(rows != 0, axis=1)]
-            if not len(rows):
+            if not len(rows) or not absorbed[i]:
                 continue
             added[i] = len(rows)
             new = self._region(np.vstack([self.beliefs[i], rows]).astype(rows.dtype))
@@ -377,11 +390,13 @@ class Learners:
     # -- testing -----------------------------------------------------------------------
     def answer(self, tests: Sequence[dict[str, Any]]) -> dict[str, np.ndarray]:
         """Every learner plays every test. Returns `reward`, `finished`, `correct` (all
-        `[n, len(tests)]`) and `optimal_reward` `[len(tests)]`."""
+        `[n, len(tests)]`), `feature_counts` `[n, len(tests), F]` of the answers and
+        `optimal_reward` `[len(tests)]`."""
         from cfteach.mdp import greedy_actions, rollout_from
 
         T = len(tests)
         reward = np.zeros((self.n, T))
+        counts = np.zeros((self.n, T, self.batch.F))
         finished = np.zeros((self.n, T), dtype=bool)
         optimal = np.zeros(T)
         by_env: dict[int, list[int]] = {}
@@ -410,10 +425,11 @@ class Learners:
                 mu, fin = ro.mu, ro.terminal
             fin &= bounded[:, None]
             reward[:, js] = mu @ self.w_true
+            counts[:, js] = mu
             finished[:, js] = fin
         correct = score_answers(reward, finished, optimal[None, :])
         return {"reward": reward, "finished": finished, "correct": correct,
-                "optimal_reward": optimal}
+                "optimal_reward": optimal, "feature_counts": counts}
 
 
 def _env_of(domain: Any, item: dict[str, Any]) -> int:

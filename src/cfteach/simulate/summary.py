@@ -80,6 +80,50 @@ def proportion_table(df: pd.DataFrame) -> list[dict[str, Any]]:
     return rows
 
 
+def answer_regret(df: pd.DataFrame) -> np.ndarray:
+    """Regret of each answer: optimal reward minus the answer's true reward, never below 0.
+
+    An answer that never finishes keeps the reward it collected until the rollout's step
+    cap (4 x the instance's states + 4 steps), so its regret is what wandering that long
+    costs: the documented cap for unfinished answers.
+    """
+    return np.maximum(0.0, df["optimal_reward"].to_numpy(float) - df["reward"].to_numpy(float))
+
+
+def regret_table(df: pd.DataFrame) -> dict[str, dict[str, dict[str, dict[str, Any]]]]:
+    """``regret[learner_model][domain][condition] = {mean, ci_low, ci_high, n_learners}``:
+    each learner's mean regret over the tests (`answer_regret`), then the mean over
+    learners with a t-based 95% CI."""
+    if df.empty:
+        return {}
+    per = df.assign(regret=answer_regret(df)).groupby(
+        ["learner_model", "domain", "condition", "seed", "learner"], observed=True
+    )["regret"].mean().reset_index()
+    out: dict[str, dict[str, dict[str, dict[str, Any]]]] = {}
+    for (model, dom, cond), g in per.groupby(["learner_model", "domain", "condition"],
+                                             observed=True):
+        m, lo, hi = mean_ci(g["regret"].to_numpy(float))
+        out.setdefault(str(model), {}).setdefault(str(dom), {})[str(cond)] = {
+            "mean": m, "ci_low": max(0.0, lo), "ci_high": hi, "n_learners": int(len(g))}
+    return out
+
+
+def items_table(beliefs: pd.DataFrame) -> dict[str, dict[str, dict[str, dict[str, Any]]]]:
+    """``items_shown[learner_model][domain][condition] = {mean, max, demonstrations,
+    tests, feedback}``: items each learner was shown (demonstrations + tests + feedback),
+    the mean of each kind beside them."""
+    if beliefs.empty or "items" not in beliefs.columns:
+        return {}
+    out: dict[str, dict[str, dict[str, dict[str, Any]]]] = {}
+    for (model, dom, cond), g in beliefs.groupby(["learner_model", "domain", "condition"],
+                                                 observed=True):
+        out.setdefault(str(model), {}).setdefault(str(dom), {})[str(cond)] = {
+            "mean": float(g["items"].mean()), "max": int(g["items"].max()),
+            "demonstrations": float(g["demos"].mean()), "tests": float(g["tests"].mean()),
+            "feedback": float(g["feedback"].mean())}
+    return out
+
+
 def ordering(table: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Whether proportion optimal falls from low to medium to high difficulty."""
     groups: dict[tuple, dict[str, float]] = {}

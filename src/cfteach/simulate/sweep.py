@@ -23,15 +23,26 @@ import numpy as np
 import pandas as pd
 
 from cfteach.jsonable import to_jsonable
+from cfteach.simulate.closed_loop import (
+    CLOSED_LOOP,
+    EQUAL_BUDGET,
+    closed_loop_chunk,
+    equal_budget_demos,
+    held_key,
+)
 from cfteach.simulate.learners import LearnerModel, Learners, learner_model
 from cfteach.simulate.summary import (
     h1_correlations,
     interaction_plot,
+    items_table,
     ordering,
     proportion_table,
+    regret_table,
 )
 
 CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
+#: Conditions `run_sweep` takes: the paper's four, closed-loop teaching and no teaching.
+SWEEP_CONDITIONS = (*CONDITIONS, CLOSED_LOOP)
 NO_TEACHING = "none"  # control: learners who see no demonstration at all
 CLUSTER_LEVEL = {0: "high", 2: "medium", 4: "low"}  # tests.json cluster -> difficulty (Alg. 2)
 SCHEMA = "cfteach.simulation/1"
@@ -116,7 +127,7 @@ def teach_material(domains: list[str | tuple], conditions: list[str], seeds: lis
     """Run `cfteach.teaching` for every (domain, seed) in parallel chunks."""
     from cfteach.parallel import map_chunks
 
-    taught = [c for c in conditions if c != NO_TEACHING]
+    taught = [c for c in conditions if c not in (NO_TEACHING, CLOSED_LOOP)]
     chunks = [{"domain": d, "seed": s, "conditions": taught, "profile": profile,
                "human_models": human_models, "per_level": per_level,
                "include_candidates": include_candidates} for d in domains for s in seeds]
@@ -189,6 +200,8 @@ def _entropy(*parts: int | str) -> list[int]:
 
 def _simulate_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
     """Teach and test one block of learners; runs in a worker."""
+    if chunk.get("closed_loop"):
+        return closed_loop_chunk(chunk)
     ss = np.random.SeedSequence(chunk["entropy"])
     dom = load_domain(chunk["domain"])
     learners = Learners(dom, chunk["model"], chunk["n"], rng=np.random.default_rng(ss))
@@ -199,11 +212,16 @@ def _simulate_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
         "correct": None if ans is None else ans["correct"],
         "reward": None if ans is None else ans["reward"],
         "finished": None if ans is None else ans["finished"],
+        "optimal_reward": None if ans is None else ans["optimal_reward"],
         "contains_w_star": learners.contains(dom.weights),
         "belief_area": areas,
         "belief_area_se": area_se,
         "belief_constraints": np.array([len(b) for b in learners.beliefs]),
         "ignored_updates": learners.ignored,
+        "items": np.full(chunk["n"], len(chunk["demos"])),
+        "demos": np.full(chunk["n"], len(chunk["demos"])),
+        "tests": np.zeros(chunk["n"], dtype=np.int64),
+        "feedback": np.zeros(chunk["n"], dtype=np.int64),
     }
 
 
@@ -227,6 +245,8 @@ class SweepResult:
             "ordering": ordering(table),
             "h1": [dict(r, source="selected") for r in h1_correlations(sel)] if len(sel)
             else [],
+            "regret": regret_table(sel) if len(sel) else {},
+            "items_shown": items_table(self.beliefs),
             "beliefs": _belief_summary(self.beliefs),
             "timing_seconds": self.timing,
         }
@@ -236,6 +256,18 @@ class SweepResult:
             out["ordering_candidates"] = ordering(ctable)
             out["h1"] += [dict(r, source="candidates") for r in h1_correlations(cand)]
         return out
+
+    def merged(self, other: SweepResult) -> SweepResult:
+        """This sweep's rows and another's (e.g. a control run after it), one result."""
+        settings = dict(self.settings)
+        settings["conditions"] = [*self.settings["conditions"],
+                                  *[c for c in other.settings["conditions"]
+                                    if c not in self.settings["conditions"]]]
+        timing = dict(self.timing)
+        timing["simulation"] = timing.get("simulation", 0.0) + other.timing.get("simulation", 0)
+        return SweepResult(pd.concat([self.answers, other.answers], ignore_index=True),
+                           pd.concat([self.beliefs, other.beliefs], ignore_index=True),
+                           settings, timing)
 
     def write(self, out_dir: str | Path) -> dict[str, Any]:
         """Write `results.json`, `answers.csv` (selected tests), `candidates.csv`
@@ -286,9 +318,18 @@ def _belief_summary(beliefs: pd.DataFrame) -> list[dict[str, Any]]:
 def simulate(material: list[Material], learner_models: list[str | LearnerModel], *,
              n_learners: int = 32, conditions: list[str] | None = None,
              include_candidates: bool = False, seed: int = 0, chunk_learners: int = 16,
-             executor=None, progress: bool = False) -> SweepResult:
+             executor=None, progress: bool = False, profile: str = "default",
+             human_models: int = 8, teacher: dict[str, Any] | None = None,
+             demos_override: dict[tuple[str, int, str, str], list] | None = None
+             ) -> SweepResult:
     """Teach each condition's curriculum to `n_learners` learners of each model, give them
-    the tests (and optionally every candidate), and collect their scored answers."""
+    the tests (and optionally every candidate), and collect their scored answers.
+
+    ``closed_loop`` gives every learner a closed-loop teacher of its own (settings
+    `teacher`, `cfteach.closedloop.TeacherSettings`), with the material's selected tests
+    held out. `demos_override[(domain label, material seed, condition, learner model)]`
+    replaces a condition's demonstrations for one learner model (the equal-budget control).
+    """
     from cfteach.parallel import chunk_slices, map_chunks
 
     if n_learners < 1:
@@ -302,18 +343,30 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
         public = [{k: v for k, v in it.items() if k in ("env_index", "env_code", "start_state",
                                                          "optimal_reward")} for it in items]
         for cond in conds:
+            extra: dict[str, Any] = {}
             if cond == NO_TEACHING:
                 demos = []
-            elif cond in mat.curricula:
-                demos = mat.curricula[cond]["demos"]
+            elif cond == CLOSED_LOOP:
+                demos = []
+                extra = {"closed_loop": True, "profile": profile, "material_seed": mat.seed,
+                         "held_key": held_key(mat.domain, profile, mat.tests),
+                         "pool_human_models": 4 * human_models, "teacher": teacher or {}}
+            elif cond in mat.curricula or demos_override:
+                demos = mat.curricula.get(cond, {}).get("demos", [])
             else:
                 raise ValueError(f"no curriculum for condition {cond!r} in domain {label}")
             for model in models:
+                key = (label, mat.seed, cond, model.name)
+                shown = demos
+                if demos_override is not None and key in demos_override:
+                    shown = demos_override[key]
+                elif cond not in mat.curricula and cond not in (NO_TEACHING, CLOSED_LOOP):
+                    raise ValueError(f"no curriculum for condition {cond!r} in domain {label}")
                 for b, sl in enumerate(chunk_slices(n_learners, chunk_size=chunk_learners)):
                     chunks.append({"domain": mat.domain, "model": model, "n": sl.stop - sl.start,
-                                   "demos": demos, "tests": public,
+                                   "demos": shown, "tests": public,
                                    "entropy": _entropy(seed, mat.seed, label, cond, model.name,
-                                                       b)})
+                                                       b), **extra})
                     meta.append((label, mat.seed, cond, model.name, sl, items))
     t0 = time.perf_counter()
     results = map_chunks(_simulate_chunk, chunks, progress=progress, desc="simulating",
@@ -327,7 +380,8 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
             "learner": ids, "contains_w_star": res["contains_w_star"],
             "belief_area": res["belief_area"], "belief_area_se": res["belief_area_se"],
             "belief_constraints": res["belief_constraints"],
-            "ignored_updates": res["ignored_updates"]}))
+            "ignored_updates": res["ignored_updates"], "items": res["items"],
+            "demos": res["demos"], "tests": res["tests"], "feedback": res["feedback"]}))
         if res["correct"] is None:
             continue
         n, t = res["correct"].shape
@@ -339,10 +393,11 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
             "difficulty": np.tile([it["difficulty"] for it in items], n),
             "overlap": np.tile([it["overlap"] for it in items], n),
             "correct": res["correct"].ravel(), "reward": res["reward"].ravel(),
-            "finished": res["finished"].ravel()}))
+            "finished": res["finished"].ravel(),
+            "optimal_reward": np.tile(res["optimal_reward"], n)}))
     answers = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(
         columns=["domain", "condition", "learner_model", "seed", "learner", "test", "source",
-                 "difficulty", "overlap", "correct", "reward", "finished"])
+                 "difficulty", "overlap", "correct", "reward", "finished", "optimal_reward"])
     settings = {"n_learners": n_learners, "seed": seed, "chunk_learners": chunk_learners,
                 "include_candidates": include_candidates,
                 "domains": sorted({domain_label(m.domain) for m in material}),
@@ -353,21 +408,60 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
                        {"simulation": elapsed})
 
 
+def check_teacher(teacher: dict[str, Any]) -> None:
+    """Closed-loop settings are checked before any work (ValueError naming the field)."""
+    import dataclasses
+
+    from cfteach.closedloop import TeacherSettings
+
+    known = {f.name for f in dataclasses.fields(TeacherSettings)}
+    bad = sorted(set(teacher) - known)
+    if bad:
+        raise ValueError(f"unknown closed-loop setting(s) {bad}; known: {', '.join(sorted(known))}")
+    TeacherSettings(**teacher)
+
+
+def equal_budget_override(material: list[Material], result: SweepResult, *, profile: str,
+                          human_models: int) -> dict[tuple[str, int, str, str], list]:
+    """The `proposed_equal_budget` demonstrations per (domain, seed, learner model): the
+    `proposed` curriculum capped at closed-loop's mean demonstrations + feedback for that
+    learner model, repeated from the start when it stops early (blind repetition)."""
+    from cfteach import teaching
+
+    b = result.beliefs[result.beliefs["condition"] == CLOSED_LOOP]
+    shown = (b["demos"] + b["feedback"]).groupby(
+        [b["domain"], b["seed"], b["learner_model"]], observed=True).mean()
+    taught: dict[tuple[str, int, int], dict[str, Any]] = {}
+    out: dict[tuple[str, int, str, str], list] = {}
+    for (label, mseed, model), mean in shown.items():
+        mat = next(m for m in material if domain_label(m.domain) == label and m.seed == mseed)
+        cap = max(1, int(round(float(mean))))
+        if (label, mseed, cap) not in taught:
+            taught[(label, mseed, cap)] = teaching.teach(
+                load_domain(mat.domain), "proposed", profile=profile, seed=mseed,
+                human_models=human_models, max_demos=cap).to_json()
+        out[(label, int(mseed), EQUAL_BUDGET, str(model))] = equal_budget_demos(
+            taught[(label, mseed, cap)], cap)
+    return out
+
+
 def run_sweep(domains: list[str], conditions: list[str] | None = None,
               learner_models: list[str] | None = None, *, n_learners: int = 32,
               seeds: int = 1, include_candidates: bool = False, source: str | Path | None = None,
               profile: str = "default", human_models: int = 8, per_level: int = 6,
               seed: int = 0, backend: str = "local", n_workers: int | None = None,
               scheduler: str | None = None, chunk_learners: int = 16,
-              progress: bool = False) -> SweepResult:
-    """The whole sweep behind `cfteach simulate`: teach (or read `source`), then simulate."""
+              progress: bool = False, teacher: dict[str, Any] | None = None) -> SweepResult:
+    """The whole sweep behind `cfteach simulate`: teach (or read `source`), then simulate.
+
+    `teacher`: `cfteach.closedloop.TeacherSettings` fields for ``closed_loop``."""
     from cfteach.parallel import Executor
 
     conditions = list(conditions or [*CONDITIONS, NO_TEACHING])
-    bad = [c for c in conditions if c not in (*CONDITIONS, NO_TEACHING)]
+    bad = [c for c in conditions if c not in (*SWEEP_CONDITIONS, NO_TEACHING)]
     if bad:
         raise ValueError(f"unknown condition(s) {bad}; choose from "
-                         f"{', '.join((*CONDITIONS, NO_TEACHING))}")
+                         f"{', '.join((*SWEEP_CONDITIONS, NO_TEACHING))}")
     if seeds < 1:
         raise ValueError(f"seeds must be at least 1, got {seeds}")
     if source is not None and seeds > 1:
@@ -375,6 +469,8 @@ def run_sweep(domains: list[str], conditions: list[str] | None = None,
                          "folder the curricula are fixed; vary the learners with seed instead")
     refs = [parse_domain(d) for d in domains]
     models = learner_models or ["counterfactual", "noisy"]
+    if teacher:
+        check_teacher(teacher)  # before any work
     with Executor(backend=backend, n_workers=n_workers, scheduler=scheduler) as ex:
         t0 = time.perf_counter()
         if source is not None:
@@ -385,9 +481,19 @@ def run_sweep(domains: list[str], conditions: list[str] | None = None,
                                       include_candidates=include_candidates, executor=ex,
                                       progress=progress)
         t_teach = time.perf_counter() - t0
-        result = simulate(material, models, n_learners=n_learners, conditions=conditions,
-                          include_candidates=include_candidates, seed=seed,
-                          chunk_learners=chunk_learners, executor=ex, progress=progress)
+        common = {"n_learners": n_learners, "include_candidates": include_candidates,
+                  "seed": seed, "chunk_learners": chunk_learners, "executor": ex,
+                  "progress": progress, "profile": profile, "human_models": human_models,
+                  "teacher": teacher}
+        result = simulate(material, models, conditions=conditions, **common)
+        if CLOSED_LOOP in conditions:
+            t1 = time.perf_counter()
+            override = equal_budget_override(material, result, profile=profile,
+                                             human_models=human_models)
+            control = simulate(material, models, conditions=[EQUAL_BUDGET],
+                               demos_override=override, **common)
+            result = result.merged(control)
+            result.timing["equal_budget"] = time.perf_counter() - t1
     result.timing["teaching"] = t_teach
     result.settings.update(backend=backend, n_workers=n_workers, profile=profile,
                            source=None if source is None else str(source))

@@ -1,14 +1,20 @@
-"""Balanced assignment: condition x domain order x test set, least-filled cell first.
+"""Balanced assignment over condition x domain order x test set, filled hierarchically.
 
-psiTurk's rule (study-platform.md §1.4): count completed sessions plus sessions active within
-the cutoff, per cell, for this study version, ignoring previews, and pick uniformly among the
-least-filled cells. Callers hold the database write lock while calling `choose_cell`.
+psiTurk's counting rule: completed sessions plus sessions active within the cutoff, per
+cell, for this study version, ignoring previews. The cell is chosen level by level: the
+least-filled condition first (so conditions stay within one participant of each other from
+the first arrival on), then its least-filled domain order, then that order's least-filled
+test set; ties go to the order and test set least used over all conditions, then uniformly
+at random. With no session freed, every cell holds k participants after 72k arrivals, as
+with a flat least-filled-cell rule. Callers hold the database write lock while calling
+`choose_cell`.
 """
 
 from __future__ import annotations
 
 import itertools
 import random
+from collections import Counter
 from datetime import datetime, timedelta
 
 from sqlalchemy import ColumnElement, func, or_, select
@@ -55,6 +61,25 @@ def _count_by_cell(db: DBSession, study: dict, which: ColumnElement[bool]) -> di
 
 
 def choose_cell(db: DBSession, study: dict, now: datetime, rng: random.Random) -> Cell:
-    counts = cell_counts(db, study, now)
-    least = min(counts.values())
-    return rng.choice([c for c, n in counts.items() if n == least])
+    """The cell for the next participant (see the module docstring)."""
+    return pick_cell(cell_counts(db, study, now), rng)
+
+
+def pick_cell(counts: dict[Cell, int], rng: random.Random) -> Cell:
+    """Hierarchical least-filled choice from per-cell occupancy `counts`."""
+    by_cond: Counter = Counter()
+    by_cond_order: Counter = Counter()
+    by_order: Counter = Counter()
+    by_set: Counter = Counter()
+    for (c, o, t), n in counts.items():
+        by_cond[c] += n
+        by_cond_order[c, o] += n
+        by_order[o] += n
+        by_set[t] += n
+
+    def key(cell: Cell) -> tuple[int, ...]:
+        c, o, t = cell
+        return (by_cond[c], by_cond_order[c, o], by_order[o], counts[cell], by_set[t])
+
+    best = min(key(cell) for cell in counts)
+    return rng.choice([cell for cell in counts if key(cell) == best])

@@ -7,10 +7,12 @@ Used by the tests and by `bench/bench_study_load.py`; `client` is anything with 
 from __future__ import annotations
 
 import random
+import time
 import uuid
 from typing import Any
 
 from .games import best_path, shortest_path
+from .steps import demo_required_ms
 
 
 class BotError(RuntimeError):
@@ -19,11 +21,16 @@ class BotError(RuntimeError):
 
 def run_participant(client: Any, params: dict | None, *, study: dict | None = None,
                     rng: random.Random | None = None, stop_after: int | None = None,
-                    fail_practice: bool = False, token: str | None = None) -> dict:
+                    fail_practice: bool = False, token: str | None = None,
+                    comment: str = "") -> dict:
     """Go from consent to completion; returns the final state and what was answered.
 
     With `study` (the server's study.json) the bot plays tests optimally; without it, it
     takes the shortest way to the end. `stop_after` stops after that many advancing steps.
+    `comment` is typed into every free-text box (each survey's with its domain appended).
+    Each demonstration is "watched" for as long as the server requires (its steps x the
+    study's `demo_step_ms`, minus the tolerance), so studies made with a small
+    `--demo-step-ms` keep bots fast.
     """
     rng = rng or random.Random(0)
     if token is None:
@@ -58,14 +65,18 @@ def run_participant(client: Any, params: dict | None, *, study: dict | None = No
         elif kind == "demos":
             for k in range(len(s["demos"])):
                 if s["completed"][k] < 1:
+                    need = demo_required_ms(len(s["demos"][k]["actions"]), s["step_ms"])
                     send(i, "demo_play_start", {"demo_index": k})
+                    t0 = time.monotonic()
+                    time.sleep(need / 1000)
                     send(i, "demo_play_end", {"demo_index": k, "completed": True,
-                                              "watch_ms": 100})
+                                              "watch_ms": round(1000 * (time.monotonic() - t0))})
             out = send(i, "continue", {})
         elif kind == "survey":
             inf, eff = rng.randint(1, 5), rng.randint(1, 5)
             answers["likert"].append((s["domain"], inf, eff))
-            out = send(i, "likert", {"informativeness": inf, "mental_effort": eff})
+            out = send(i, "likert", {"informativeness": inf, "mental_effort": eff,
+                                     "comment": f"{comment} {s['domain']}" if comment else ""})
         elif kind == "test":
             if study is not None:
                 t = find_test(study, s)
@@ -78,7 +89,7 @@ def run_participant(client: Any, params: dict | None, *, study: dict | None = No
                                             "confidence": conf})
         elif kind == "demographics":
             out = send(i, "demographics", {"age": 30, "gender": "Female",
-                                           "education": "High school"})
+                                           "education": "High school", "comments": comment})
         else:
             out = send(i, "continue", {})
         st = out["state"]

@@ -45,13 +45,15 @@ class DomainSource:
 def init_study(out: str | Path, sources: Iterable[DomainSource], *,
                title: str = "Machine Teaching Study",
                completion_code: str = "COMPLETED", screened_out_code: str = "SCREENED",
+               no_consent_code: str = "NOCONSENT",
                completion_url: str = "https://app.prolific.com/submissions/complete?cc=",
                test_sets: int = 3, demo_step_ms: int = 500, cutoff_minutes: float = 30.0,
                practice_attempts: int = 3, consent_html: str | None = None) -> Path:
     """Write `out/study.json` and return its path.
 
     `consent_html`: your ethics board's consent text (HTML without scripts) shown above the
-    three consent check boxes instead of the built-in generic one.
+    three consent check boxes instead of the built-in generic one. `no_consent_code` is shown
+    (and redirected to) when someone declines consent, for Prolific's "no consent" code.
     """
     sources = list(sources)
     if not sources:
@@ -106,7 +108,7 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
         "practice_attempts": practice_attempts,
         "consent_html": consent_html,
         "completion": {"completed": completion_code, "screened_out": screened_out_code,
-                       "url": completion_url},
+                       "declined": no_consent_code, "url": completion_url},
         "practice": {"layout": PRACTICE.study_layout(), "game": pgame,
                      "weights": list(PRACTICE_WEIGHTS), "start_energy": PRACTICE_START_ENERGY,
                      "target_energy": PRACTICE_START_ENERGY + best},

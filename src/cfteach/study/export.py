@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 from collections import defaultdict
 from datetime import UTC, datetime
 from pathlib import Path
@@ -11,7 +12,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import sessionmaker
 
 from .db import make_engine
-from .models import Event, Session, TestResponse, aware
+from .models import ClientReport, Event, Session, TestResponse, aware
 
 COUNTERFACTUAL = {"counterfactual_only", "proposed"}
 FEATURE = {"feature_only", "proposed"}
@@ -27,7 +28,8 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("feature_scaffolding", "0/1", "1 if the condition uses feature scaffolding"),
         ("domain_order", "str", "domains in the order shown, joined by ';'"),
         ("test_set", "int", "which of the alternative test sets (0-based)"),
-        ("status", "str", "completed | screened_out | abandoned | in_progress"),
+        ("status", "str", "completed | screened_out | declined (said no to consent) | "
+                          "abandoned | in_progress"),
         ("is_preview", "0/1", "1 for preview/test sessions (not counted in assignment)"),
         ("started_at", "ISO 8601 UTC", "session creation time"),
         ("completed_at", "ISO 8601 UTC", "completion (or screen-out) time; empty otherwise"),
@@ -35,6 +37,7 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("age", "int", "self-reported age"),
         ("gender", "str", "self-reported gender"),
         ("education", "str", "self-reported education (optional item)"),
+        ("study_version", "str", "content hash of the study file the session ran on"),
     ],
     "test_responses.csv": [
         ("participant_id", "str", "see participants.csv"),
@@ -51,8 +54,10 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("optimal_reward", "float", "reward of the robot's optimal answer"),
         ("optimal", "0/1", "1 if reward equals optimal_reward within 1e-9 (the paper's M1)"),
         ("optimal_length", "int", "number of actions of the robot's optimal answer"),
-        ("time_ms", "int", "from the test being first shown to its submission (browser clock; "
-                           "a reload keeps counting)"),
+        ("time_ms", "int", "from the test being first shown to its submission, on the server's "
+                           "clock (from the previous page's answer being stored to this "
+                           "answer arriving; a reload keeps counting)"),
+        ("client_time_ms", "int", "the same time as the browser reported it (not trusted)"),
         ("confidence", "int", "1..5: confidence item (1 = Not Confident)"),
     ],
     "likert.csv": [
@@ -68,9 +73,33 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("condition", "str", "see participants.csv"),
         ("domain", "str", "domain of the demonstration"),
         ("demo_index", "int", "0-based position of the demonstration in the curriculum"),
-        ("plays_completed", "int", "plays watched to the end"),
+        ("plays_completed", "int", "plays the server saw run from start to end for at least "
+                                   "the replay's length"),
         ("replays", "int", "plays started beyond the first"),
-        ("watch_ms", "int", "total time spent playing this demonstration"),
+        ("watch_ms", "int", "total time spent playing this demonstration, on the server's "
+                            "clock (from each play's start to its end)"),
+        ("client_watch_ms", "int", "the same total as the browser reported it (not trusted)"),
+    ],
+    "comments.csv": [
+        ("participant_id", "str", "see participants.csv"),
+        ("condition", "str", "see participants.csv"),
+        ("source", "str", "survey (comment box under a domain's Likert items) | demographics "
+                          "(final comments)"),
+        ("domain", "str", "domain of the survey; empty for demographics"),
+        ("comment", "str", "free text as typed: MAY IDENTIFY THE PARTICIPANT (names, "
+                           "places, contacts); review before sharing"),
+    ],
+    "client_reports.csv": [
+        ("participant_id", "str", "see participants.csv; empty if the page had no valid "
+                                  "session"),
+        ("reported_at", "ISO 8601 UTC", "when the server stored the report"),
+        ("path", "str", "the refused request (/api/event, /api/session, /api/state)"),
+        ("http_status", "int", "the server's (or a proxy's) HTTP status"),
+        ("error", "str", "the server's error code (e.g. bad_moves, wrong_step)"),
+        ("detail", "str", "the server's message (never shown to the participant)"),
+        ("event_type", "str", "type of the refused event, if it was one"),
+        ("step_index", "int", "step the refused event was sent for"),
+        ("event", "JSON", "the refused event exactly as the page sent it"),
     ],
 }
 
@@ -109,7 +138,8 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
                 s.condition, _b(s.condition in COUNTERFACTUAL), _b(s.condition in FEATURE),
                 s.domain_order, s.test_set, status, _b(s.is_preview), _iso(s.created_at),
                 _iso(s.completed_at), s.practice_attempts,
-                "" if s.age is None else s.age, s.gender or "", s.education or ""])
+                "" if s.age is None else s.age, s.gender or "", s.education or "",
+                s.study_version])
         for t in db.scalars(select(TestResponse).order_by(TestResponse.session_pk,
                                                           TestResponse.id)):
             s = by_pk.get(t.session_pk)
@@ -119,10 +149,10 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
                 s.participant_id, s.condition, t.domain, t.domain_position, t.test_id,
                 t.difficulty, "" if t.overlap is None else repr(t.overlap), t.trial_index,
                 t.actions, t.n_actions, repr(t.reward), repr(t.optimal_reward), _b(t.optimal),
-                t.optimal_length, t.time_ms, t.confidence])
-        views: dict[tuple, list[int]] = defaultdict(lambda: [0, 0, 0])
+                t.optimal_length, t.server_ms, t.time_ms, t.confidence])
+        views: dict[tuple, list[int]] = defaultdict(lambda: [0, 0, 0, 0])
         for ev in db.scalars(select(Event).where(Event.type.in_(
-                ("likert", "demo_play_start", "demo_play_end")))
+                ("likert", "demo_play_start", "demo_play_end", "demographics")))
                 .order_by(Event.session_pk, Event.seq)):
             s = by_pk.get(ev.session_pk)
             if s is None:
@@ -133,18 +163,35 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
                 for item in ("informativeness", "mental_effort"):
                     rows["likert.csv"].append([s.participant_id, s.condition, dom,
                                                order.index(dom) + 1, item, ev.payload[item]])
+                if ev.payload.get("comment"):
+                    rows["comments.csv"].append([s.participant_id, s.condition, "survey", dom,
+                                                 ev.payload["comment"]])
+            elif ev.type == "demographics":
+                if ev.payload.get("comments"):
+                    rows["comments.csv"].append([s.participant_id, s.condition, "demographics",
+                                                 "", ev.payload["comments"]])
             elif ev.type in ("demo_play_start", "demo_play_end"):
                 dom = ev.domain
                 v = views[(s.id, dom, ev.payload["demo_index"])]
                 if ev.type == "demo_play_start":
                     v[1] += 1
                 else:
-                    v[0] += int(bool(ev.payload["completed"]))
-                    v[2] += int(ev.payload["watch_ms"])
-        for (pk, dom, k), (done, starts, ms) in sorted(views.items()):
+                    v[0] += int(bool(ev.verified))
+                    v[2] += ev.server_ms or 0
+                    v[3] += int(ev.payload["watch_ms"])
+        for (pk, dom, k), (done, starts, ms, client_ms) in sorted(views.items()):
             s = by_pk[pk]
             rows["demo_views.csv"].append([s.participant_id, s.condition, dom, k, done,
-                                           max(0, starts - 1), ms])
+                                           max(0, starts - 1), ms, client_ms])
+        for r in db.scalars(select(ClientReport).order_by(ClientReport.id)):
+            s = by_pk.get(r.session_pk) if r.session_pk is not None else None
+            if r.session_pk is not None and s is None:
+                continue  # a preview's report (or one of a session left out)
+            ev = r.event if isinstance(r.event, dict) else {}
+            rows["client_reports.csv"].append([
+                s.participant_id if s else "", _iso(r.server_at), r.path, r.http_status,
+                r.error, r.detail, ev.get("type", ""), ev.get("step_index", ""),
+                "" if r.event is None else json.dumps(r.event, sort_keys=True)])
     counts = {}
     for name, cols in COLUMNS.items():
         with open(out / name, "w", newline="", encoding="utf-8") as f:

@@ -1,12 +1,18 @@
-"""Run the study app on a free loopback port in a background thread (tests, benchmarks)."""
+"""Run the study app: the uvicorn settings every runner shares (`cfteach serve`, tests,
+benchmarks), a free loopback port in a background thread, or `cfteach serve` in a child
+process."""
 
 from __future__ import annotations
 
+import os
 import socket
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import uvicorn
 from fastapi import FastAPI
@@ -18,12 +24,28 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def server_config(app: FastAPI, *, host: str, port: int, forwarded_allow_ips: str = "",
+                  log_level: str = "warning") -> uvicorn.Config:
+    """uvicorn settings for the study app.
+
+    `X-Forwarded-For` is believed only from the proxies in `forwarded_allow_ips`
+    (comma-separated addresses or networks, `*` = any; uvicorn's ProxyHeadersMiddleware does
+    the parsing). The default is no proxy at all: uvicorn alone would trust loopback, and
+    then anything on the machine could pose as any number of clients to the rate limits.
+    """
+    trusted = forwarded_allow_ips.strip()
+    return uvicorn.Config(app, host=host, port=port, log_level=log_level, access_log=False,
+                          lifespan="off", proxy_headers=bool(trusted),
+                          forwarded_allow_ips=trusted or None)
+
+
 @contextmanager
-def running(app: FastAPI, *, port: int | None = None) -> Iterator[str]:
+def running(app: FastAPI, *, port: int | None = None,
+            forwarded_allow_ips: str = "") -> Iterator[str]:
     """Yield the base URL (http://127.0.0.1:PORT) while uvicorn serves `app`."""
     port = port or free_port()
-    config = uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning",
-                            access_log=False, lifespan="off")
+    config = server_config(app, host="127.0.0.1", port=port,
+                           forwarded_allow_ips=forwarded_allow_ips)
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
@@ -37,3 +59,38 @@ def running(app: FastAPI, *, port: int | None = None) -> Iterator[str]:
     finally:
         server.should_exit = True
         thread.join(timeout=10)
+
+
+@contextmanager
+def serving_process(study: str | Path, *args: str,
+                    timeout: float = 60.0) -> Iterator[tuple[str, subprocess.Popen]]:
+    """Run `cfteach serve --study STUDY ARGS...` on a free loopback port in a child process
+    (its memory is then its own, measurable); yield the base URL and the process."""
+    import httpx  # a test and benchmark dependency only
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from cfteach.cli import main; main()", "serve", "--study",
+         str(study), "--host", "127.0.0.1", "--port", str(port), *args],
+        env={**os.environ, "CFTEACH_LOG": "warning"},
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + timeout
+        while True:
+            if proc.poll() is not None:
+                raise RuntimeError(f"cfteach serve exited: {proc.stderr.read()[-2000:]}")
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"cfteach serve did not start within {timeout:.0f} s")
+            try:
+                if httpx.get(base + "/", timeout=1).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                time.sleep(0.1)
+        yield base, proc
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()

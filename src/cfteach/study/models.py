@@ -80,6 +80,10 @@ class Event(Base):
     payload: Mapped[dict] = mapped_column(JSON)
     client_ms: Mapped[float | None] = mapped_column(Float, nullable=True)
     server_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    # demo_play_end only: the play's length on the server's clock (from the matching
+    # demo_play_start; empty without one) and whether it counts as watched to the end.
+    server_ms: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    verified: Mapped[bool | None] = mapped_column(Boolean, nullable=True)
 
 
 class TestResponse(Base):
@@ -102,6 +106,38 @@ class TestResponse(Base):
     optimal_reward: Mapped[float] = mapped_column(Float)
     optimal: Mapped[bool] = mapped_column(Boolean)
     optimal_length: Mapped[int] = mapped_column(Integer)
-    time_ms: Mapped[int] = mapped_column(Integer)
-    server_ms: Mapped[int] = mapped_column(Integer)
+    time_ms: Mapped[int] = mapped_column(Integer)  # the browser's figure (client_time_ms)
+    server_ms: Mapped[int] = mapped_column(Integer)  # server clock (exported as time_ms)
     confidence: Mapped[int] = mapped_column(Integer)
+
+
+class ClientReport(Base):
+    """A request the server refused for good, as the participant's page reported it.
+
+    The page keeps a refused event until the server has stored it here, so no answer is lost
+    even when it could not be accepted (the researcher sees what was sent and why it failed).
+    """
+
+    __tablename__ = "client_reports"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    report_id: Mapped[str] = mapped_column(String(64), unique=True)
+    session_pk: Mapped[int | None] = mapped_column(ForeignKey("sessions.id"), index=True,
+                                                   nullable=True)
+    path: Mapped[str] = mapped_column(String(100))
+    http_status: Mapped[int] = mapped_column(Integer)
+    error: Mapped[str] = mapped_column(String(64))
+    detail: Mapped[str] = mapped_column(Text)
+    event: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    client_ms: Mapped[float | None] = mapped_column(Float, nullable=True)
+    server_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class StudyVersion(Base):
+    """The content of every study file the server has run, so a session started on one
+    version is served from it to the end even after `study.json` changes."""
+
+    __tablename__ = "study_versions"
+    version: Mapped[str] = mapped_column(String(32), primary_key=True)
+    title: Mapped[str] = mapped_column(String(200))
+    content: Mapped[str] = mapped_column(Text)  # study.json as written by `study init`
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

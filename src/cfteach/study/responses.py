@@ -48,6 +48,13 @@ class EventAck(BaseModel):
     state: State
 
 
+class Ack(BaseModel):
+    """A stored client report (`duplicate`: that report id was stored before)."""
+
+    ok: bool
+    duplicate: bool = False
+
+
 class Cell(BaseModel):
     condition: str
     domain_order: str
@@ -57,9 +64,11 @@ class Cell(BaseModel):
 
 
 class Progress(BaseModel):
+    model_config = ConfigDict(extra="allow")  # a field added later is passed on, not dropped
     study_version: str
     status: dict[str, int]
     previews: int
+    older_versions_in_progress: int
     cells: list[Cell]
 
 
@@ -67,7 +76,8 @@ _WHY = {
     400: "Unreadable request body",
     401: "Missing or unknown session token",
     403: "Researcher token required",
-    409: "Conflicts with the session's state (duplicate event, wrong step, finished)",
+    409: "Conflicts with the session's state (duplicate event, wrong step, finished, "
+         "session open elsewhere)",
     410: "The session belongs to another study version",
     413: "Request body too large",
     415: "Body is not application/json",

@@ -18,6 +18,32 @@ from pydantic_core import PydanticCustomError
 
 from .texts import EDUCATION, GENDERS
 
+# Control characters make no sense in an id or a typed answer, and PostgreSQL cannot store
+# NUL at all: refuse them here (422) on every database. Free text keeps tab and line breaks.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+_TEXT_CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f]")
+
+
+def _unicode(s: str) -> str:
+    try:
+        s.encode("utf-8")
+    except UnicodeEncodeError:  # a lone surrogate ("\ud800" in the JSON)
+        raise ValueError("invalid Unicode (unpaired surrogate)") from None
+    return s
+
+
+def _single_line(s: str) -> str:
+    if _CONTROL.search(s):
+        raise ValueError("control characters (NUL, line breaks, ...) are not allowed")
+    return _unicode(s)
+
+
+def _text(s: str) -> str:
+    if _TEXT_CONTROL.search(s):
+        raise ValueError("control characters other than tab and line breaks are not allowed")
+    return _unicode(s)
+
+
 # Prolific ids: letters, digits, '_' and '-', or an unfilled placeholder such as
 # {{%PROLIFIC_PID%}} (a researcher's preview). The pattern is in the OpenAPI schema too,
 # so a client (or a fuzzer) can tell a valid id from the schema alone.
@@ -32,8 +58,12 @@ def _prolific_id(value: str, info: ValidationInfo) -> str:
     return value
 
 
-IdStr = Annotated[str, StringConstraints(max_length=64), AfterValidator(_prolific_id),
-                  Field(json_schema_extra={"pattern": ID_PATTERN})]
+TOKEN_PATTERN = r"^[A-Za-z0-9_-]{43}$"  # what secrets.token_urlsafe(32) gives
+IdStr = Annotated[str, StringConstraints(max_length=64), AfterValidator(_single_line),
+                  AfterValidator(_prolific_id), Field(json_schema_extra={"pattern": ID_PATTERN})]
+TokenStr = Annotated[str, StringConstraints(pattern=TOKEN_PATTERN)]
+Comment = Annotated[str, StringConstraints(max_length=2000), AfterValidator(_text)]
+LongComment = Annotated[str, StringConstraints(max_length=4000), AfterValidator(_text)]
 Action = Literal["up", "down", "left", "right", "pickup", "dropoff"]
 Likert5 = Annotated[int, Field(ge=1, le=5)]
 
@@ -47,15 +77,28 @@ class SessionRequest(Strict):
     study_id: IdStr | None = None
     session_id: IdStr | None = None
     mode: Literal["live", "test", "preview"] | None = None
-    token: Annotated[str, StringConstraints(max_length=64)] | None = None
+    token: TokenStr | None = None
 
 
 class EventRequest(Strict):
     event_id: Annotated[str, StringConstraints(min_length=8, max_length=64,
                                                pattern=r"^[A-Za-z0-9_-]+$")]
     step_index: Annotated[int, Field(ge=0, le=10_000)]
-    type: Annotated[str, StringConstraints(max_length=32)]
+    type: Annotated[str, StringConstraints(max_length=32, pattern=r"^[a-z_]+$")]
     payload: dict = Field(default_factory=dict)
+    client_ms: Annotated[float, Field(ge=0, le=1e15)] | None = None
+
+
+class ClientReport(Strict):
+    """What the page sends when the server refused one of its requests for good."""
+
+    report_id: Annotated[str, StringConstraints(min_length=8, max_length=64,
+                                                pattern=r"^[A-Za-z0-9_-]+$")]
+    path: Annotated[str, StringConstraints(max_length=100)]
+    http_status: Annotated[int, Field(ge=0, le=599)]
+    error: Annotated[str, StringConstraints(max_length=64)] = ""
+    detail: Annotated[str, StringConstraints(max_length=2000)] = ""
+    event: dict | None = None  # the refused event as sent (kept even if it was malformed)
     client_ms: Annotated[float, Field(ge=0, le=1e15)] | None = None
 
 
@@ -87,7 +130,7 @@ class DemoPlayEnd(Strict):
 class Likert(Strict):
     informativeness: Likert5
     mental_effort: Likert5
-    comment: Annotated[str, StringConstraints(max_length=2000)] = ""
+    comment: Comment = ""
 
 
 class TestAnswer(Strict):
@@ -101,13 +144,14 @@ class Demographics(Strict):
     age: Annotated[int, Field(ge=18, le=120)]
     gender: Literal[tuple(GENDERS)]  # type: ignore[valid-type]
     education: Literal[tuple(EDUCATION)] | None = None  # type: ignore[valid-type]
-    comments: Annotated[str, StringConstraints(max_length=4000)] = ""
+    comments: LongComment = ""
 
 
 PAYLOADS: dict[str, type[Strict]] = {
     "consent": Consent, "continue": Empty, "practice_attempt": PracticeAttempt,
     "demo_play_start": DemoPlayStart, "demo_play_end": DemoPlayEnd, "likert": Likert,
     "test_response": TestAnswer, "demographics": Demographics, "page_load": Empty,
+    "decline": Empty,
 }
 
 

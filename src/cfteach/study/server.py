@@ -12,41 +12,19 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.middleware.base import BaseHTTPMiddleware
 
 from . import schemas
-from .config import load_study
+from .config import StudyError, load_study
 from .db import make_engine, upgrade
+from .guard import Guard
 from .ratelimit import RateLimiter
-from .responses import EventAck, Progress, SessionStarted, State, errors
-from .service import ApiError, StudyService
+from .responses import Ack, EventAck, Progress, SessionStarted, State, errors
+from .service import ApiError, StudyService, well_formed_token
+from .versions import store_version, unstored_in_progress
 
 HERE = Path(__file__).parent
-MAX_BODY = 64 * 1024
-CSP = ("default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'; "
-       "connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'self'")
-
-
-class _Limits(BaseHTTPMiddleware):
-    """Body size cap and security headers on every response."""
-
-    async def dispatch(self, request: Request, call_next):  # noqa: ANN001, ANN201
-        if request.method in ("POST", "PUT", "PATCH"):
-            ctype = request.headers.get("content-type", "")
-            if request.url.path.startswith("/api/") and not ctype.startswith("application/json"):
-                return _err(415, "json_only", "send the body as application/json")
-            declared = request.headers.get("content-length")
-            if declared is not None and (not declared.isdigit() or int(declared) > MAX_BODY):
-                return _err(413, "too_large", f"request body over {MAX_BODY} bytes")
-            body = await request.body()
-            if len(body) > MAX_BODY:
-                return _err(413, "too_large", f"request body over {MAX_BODY} bytes")
-        response = await call_next(request)
-        response.headers["Content-Security-Policy"] = CSP
-        response.headers["X-Content-Type-Options"] = "nosniff"
-        response.headers["Referrer-Policy"] = "no-referrer"
-        response.headers["Cache-Control"] = "no-store"
-        return response
+# Refusals that mean "you did not prove who you are": counted per client address.
+AUTH_FAILURES = {"no_session", "session_elsewhere", "forbidden"}
 
 
 def _err(status: int, code: str, message: str) -> JSONResponse:
@@ -55,30 +33,54 @@ def _err(status: int, code: str, message: str) -> JSONResponse:
 
 def create_app(study_dir: str | Path, db_url: str | None = None, *,
                researcher_token: str | None = None, seed: int | None = None,
-               sessions_per_minute: int = 120, events_per_minute: int = 600) -> FastAPI:
+               sessions_per_minute: int = 120, events_per_minute: int = 600,
+               auth_failures_per_minute: int = 60,
+               reports_per_minute: int = 60, new_version: bool = False) -> FastAPI:
     """Build the server for one study folder; migrations run here, before serving.
 
-    Rate limits (0 = off): new sessions per client address, events per session, per minute.
+    Rate limits per minute (0 = off): new sessions per client address, events per session,
+    failed authentications per client address (beyond it, the address gets 429 before any
+    token is looked up), error reports from the page per client address (a made-up token
+    must not lift it). The client address is the connection's, or the one a trusted proxy
+    forwards (see `livesrv.server_config`).
+
+    The study file is kept in the database, so sessions started on an older file finish on
+    it. Sessions in progress on a file the database does not hold (a database from before
+    files were kept) would be stranded: refuse to start unless `new_version`.
     """
     study = load_study(study_dir)
     if db_url is None:
         db_url = f"sqlite:///{Path(study_dir) / 'study.db'}"
     engine = make_engine(db_url)
     upgrade(engine)
+    stranded = unstored_in_progress(engine, study["version"])
+    if stranded and not new_version:
+        engine.dispose()
+        which = ", ".join(f"{n} on version {v}" for v, n in sorted(stranded.items()))
+        raise StudyError(f"{sum(stranded.values())} session(s) are in progress on a study file "
+                         f"this database does not hold ({which}); serve that file until they "
+                         "finish, or pass --new-version to start anyway (they cannot finish)")
+    store_version(engine, study)
     service = StudyService(engine, study, seed=seed)
     token = researcher_token or secrets.token_urlsafe(16)
     session_limit = RateLimiter(sessions_per_minute)
     event_limit = RateLimiter(events_per_minute)
+    auth_limit = RateLimiter(auth_failures_per_minute)
+    report_limit = RateLimiter(reports_per_minute)
 
     app = FastAPI(title="cfteach study", docs_url=None, redoc_url=None, openapi_url=None)
     app.state.service = service
     app.state.researcher_token = token
-    app.add_middleware(_Limits)
+    app.state.limits = {"sessions": session_limit, "events": event_limit, "auth": auth_limit,
+                        "reports": report_limit}
+    app.add_middleware(Guard)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
     page = (HERE / "templates" / "index.html").read_text()
 
     @app.exception_handler(ApiError)
-    async def _api_error(_req: Request, e: ApiError) -> JSONResponse:
+    async def _api_error(req: Request, e: ApiError) -> JSONResponse:
+        if e.code in AUTH_FAILURES:
+            auth_limit.hit(_client(req))
         return _err(e.status, e.code, e.message)
 
     @app.exception_handler(StarletteHTTPException)
@@ -102,45 +104,77 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     def index() -> HTMLResponse:
         return HTMLResponse(page.replace("{{title}}", html.escape(study["title"])))
 
+    def _not_blocked(request: Request) -> str:
+        addr = _client(request)
+        if auth_limit.blocked(addr):
+            raise ApiError(429, "rate_limited", "too many failed authentications from this "
+                           "address; try again in a minute")
+        return addr
+
+    def _session_token(request: Request, given: str | None) -> str:
+        """The request's session token, refused (401) before any lookup if malformed."""
+        _not_blocked(request)
+        if not well_formed_token(given):
+            raise ApiError(401, "no_session", "missing or malformed session token")
+        return given  # type: ignore[return-value]
+
     @app.post("/api/session", response_model=SessionStarted,
-              responses=errors(400, 413, 415, 422, 429))
+              responses=errors(400, 409, 413, 415, 422, 429))
     def start(req: schemas.SessionRequest, request: Request) -> JSONResponse:
-        addr = request.client.host if request.client else "?"
+        addr = _not_blocked(request)
         if not session_limit.allow(addr):
             raise ApiError(429, "rate_limited", "too many new sessions; try again in a minute")
         row, resumed = service.start(req)
         return JSONResponse({"token": row.token, "resumed": resumed,
                              "participant_id": row.participant_id})
 
-    @app.get("/api/state", response_model=State, responses=errors(401, 410, 422))
-    def state(x_session_token: str | None = Header(default=None)) -> JSONResponse:
-        return JSONResponse(service.state(x_session_token))
+    @app.get("/api/state", response_model=State, responses=errors(401, 410, 422, 429))
+    def state(request: Request,
+              x_session_token: str | None = Header(default=None)) -> JSONResponse:
+        return JSONResponse(service.state(_session_token(request, x_session_token)))
 
     @app.post("/api/event", response_model=EventAck,
               responses=errors(400, 401, 409, 410, 413, 415, 422, 429))
     def event(req: schemas.EventBody, request: Request,
               x_session_token: str | None = Header(default=None)) -> JSONResponse:
-        if not event_limit.allow(x_session_token or "?"):
+        tok = _session_token(request, x_session_token)
+        if not event_limit.allow(tok):
             raise ApiError(429, "rate_limited", "too many events; slow down")
-        return JSONResponse(service.post_event(x_session_token, req))
+        return JSONResponse(service.post_event(tok, req))
 
-    def _check_researcher(given: str | None) -> None:
-        # Bytes: compare_digest refuses non-ASCII str (a 500 before; found by the fuzzer).
+    @app.post("/api/client-report", response_model=Ack,
+              responses=errors(400, 413, 415, 422, 429))
+    def client_report(req: schemas.ClientReport, request: Request,
+                      x_session_token: str | None = Header(default=None)) -> JSONResponse:
+        if not report_limit.allow(_client(request)):
+            raise ApiError(429, "rate_limited", "too many reports; slow down")
+        # the session may be what failed: any token or none, but only a well-formed one is
+        # looked up
+        tok = x_session_token if well_formed_token(x_session_token) else None
+        return JSONResponse(service.report(tok, req))
+
+    def _check_researcher(request: Request, given: str | None) -> None:
+        _not_blocked(request)
         if not given or not hmac.compare_digest(given.encode(), token.encode()):
             raise ApiError(403, "forbidden", "researcher token required")
 
     @app.get("/api/researcher/progress", response_model=Progress,
-             responses=errors(403, 422))
-    def progress(x_researcher_token: str | None = Header(default=None)) -> JSONResponse:
-        _check_researcher(x_researcher_token)
-        return JSONResponse(service.progress())
+             responses=errors(403, 422, 429))
+    def progress(request: Request,
+                 x_researcher_token: str | None = Header(default=None)) -> dict:
+        _check_researcher(request, x_researcher_token)
+        return service.progress()
 
-    @app.get("/researcher", response_class=HTMLResponse, responses=errors(403, 422))
-    def researcher(token: str | None = None) -> HTMLResponse:
-        _check_researcher(token)
+    @app.get("/researcher", response_class=HTMLResponse, responses=errors(403, 422, 429))
+    def researcher(request: Request, token: str | None = None) -> HTMLResponse:
+        _check_researcher(request, token)
         return HTMLResponse(_progress_html(service.progress(), study["title"]))
 
     return app
+
+
+def _client(request: Request) -> str:
+    return request.client.host if request.client else "?"
 
 
 def _progress_html(p: dict, title: str) -> str:
@@ -152,7 +186,8 @@ def _progress_html(p: dict, title: str) -> str:
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>Progress</title>"
             f"<link rel='stylesheet' href='/static/style.css'></head><body class='researcher'>"
             f"<h1>{html.escape(title)}: progress</h1><p>Study version {p['study_version']}. "
-            f"Sessions by status: {status or 'none'}; previews (not counted): {p['previews']}."
-            f"</p><table><thead><tr><th>condition</th><th>domain order</th><th>test set</th>"
+            f"Sessions by status: {status or 'none'}; previews (not counted): {p['previews']}; "
+            f"in progress on older study versions: {p['older_versions_in_progress']}.</p>"
+            f"<table><thead><tr><th>condition</th><th>domain order</th><th>test set</th>"
             f"<th>occupied (completed + active)</th><th>completed</th></tr></thead>"
             f"<tbody>{rows}</tbody></table></body></html>")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hmac
 import random
 import re
 import secrets
@@ -21,12 +22,22 @@ from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .build import browser_game
 from .games import ScoringError, replay
-from .models import Event, Session, TestResponse, aware, utcnow
-from .steps import ALLOWED, build_steps
+from .models import ClientReport, Event, Session, TestResponse, aware, utcnow
+from .steps import ALLOWED, build_steps, demo_required_ms
 from .texts import EDUCATION, GENDERS, LIKERT
+from .versions import load_version
 
 _PLACEHOLDER = re.compile(r"^\{\{?%.*%\}?\}$|^$")
 _ID_OK = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+TOKEN_BYTES = 32
+TOKEN_RE = re.compile(schemas.TOKEN_PATTERN)  # secrets.token_urlsafe(TOKEN_BYTES)
+ELSEWHERE = ("This study is already in progress in another browser. Please continue it "
+             "there (the browser and tab you started it in).")
+
+
+def well_formed_token(token: str | None) -> bool:
+    """Whether `token` could be a session token at all (checked before any lookup)."""
+    return token is not None and TOKEN_RE.fullmatch(token) is not None
 
 
 class ApiError(Exception):
@@ -51,11 +62,19 @@ class StudyService:
         self._pg = engine.dialect.name == "postgresql"
         self._steps_cache: dict[tuple, list[dict]] = {}
         self._cache_lock = threading.Lock()
+        # Study versions by id: the current one plus older ones that still have sessions,
+        # read from the database on first use (see versions.py).
+        self._studies: dict[str, dict] = {study["version"]: study}
 
     # -- sessions -------------------------------------------------------------------------
 
     def start(self, req: schemas.SessionRequest) -> tuple[Session, bool]:
-        """Resume the participant's session (by Prolific PID, else by token) or assign one."""
+        """Resume the participant's session or assign one.
+
+        A Prolific PID that already has a session resumes it only with proof: the session's
+        token (stored by the browser that started it) or the Prolific SESSION_ID it started
+        with. Knowing a PID alone gets 409 `session_elsewhere` and changes nothing.
+        """
         pid = req.prolific_pid
         for name, value in (("PROLIFIC_PID", pid), ("STUDY_ID", req.study_id),
                             ("SESSION_ID", req.session_id)):
@@ -74,7 +93,9 @@ class StudyService:
             if pid_key:
                 row = db.scalar(select(Session).where(Session.pid_key == pid_key))
                 if row is not None:
-                    return row, True
+                    if _proves(row, req.token, sess_id):
+                        return row, True
+                    raise ApiError(409, "session_elsewhere", ELSEWHERE)
             elif req.token:
                 row = db.scalar(select(Session).where(Session.token == req.token))
                 if row is not None and row.is_preview and row.prolific_pid == pid:
@@ -82,7 +103,7 @@ class StudyService:
             now = utcnow()
             cond, order, test_set = choose_cell(db, self.study, now, self._rng)
             row = Session(
-                participant_id=secrets.token_hex(8), token=secrets.token_urlsafe(32),
+                participant_id=secrets.token_hex(8), token=secrets.token_urlsafe(TOKEN_BYTES),
                 study_version=self.study["version"], pid_key=pid_key, prolific_pid=pid,
                 study_id=study_id, session_id=sess_id, condition=cond,
                 domain_order=";".join(order), test_set=test_set,
@@ -93,7 +114,7 @@ class StudyService:
         return row, False
 
     def _session(self, db: DBSession, token: str | None, *, lock: bool = False) -> Session:
-        if not token or len(token) > 64:
+        if not well_formed_token(token):
             raise ApiError(401, "no_session", "missing or malformed session token")
         q = select(Session).where(Session.token == token)
         if lock and self._pg:
@@ -101,15 +122,25 @@ class StudyService:
         row = db.scalar(q)
         if row is None:
             raise ApiError(401, "no_session", "unknown session token")
-        if row.study_version != self.study["version"]:
-            raise ApiError(410, "study_changed", "this session belongs to another study version")
+        if row.study_version not in self._studies:
+            old = load_version(db, row.study_version)
+            if old is None:
+                raise ApiError(410, "study_changed",
+                               "this session belongs to a study version the server no longer has")
+            with self._cache_lock:
+                self._studies[row.study_version] = old
         return row
 
+    def study_of(self, row: Session) -> dict:
+        """The study version `row` started on (loaded by `_session`)."""
+        return self._studies[row.study_version]
+
     def steps(self, row: Session) -> list[dict]:
-        key = (row.domain_order, row.test_set, row.seed)
+        key = (row.study_version, row.domain_order, row.test_set, row.seed)
         steps = self._steps_cache.get(key)
         if steps is None:
-            steps = build_steps(self.study, row.domain_order.split(";"), row.test_set, row.seed)
+            steps = build_steps(self.study_of(row), row.domain_order.split(";"), row.test_set,
+                                row.seed)
             with self._cache_lock:
                 if len(self._steps_cache) >= 2048:  # bounded: recent sessions only
                     self._steps_cache.pop(next(iter(self._steps_cache)))
@@ -125,15 +156,15 @@ class StudyService:
 
     def _view(self, db: DBSession, row: Session) -> dict:
         steps = self.steps(row)
-        comp = self.study["completion"]
+        s = self.study_of(row)
+        comp = s["completion"]
         base = {"status": row.status, "step_index": row.step_index, "n_steps": len(steps),
                 "participant_id": row.participant_id, "is_preview": row.is_preview}
-        if row.status == "screened_out":
-            return {**base, "step": {"kind": "screened_out", "code": comp["screened_out"],
-                                     "redirect": _redirect(comp, "screened_out", row)}}
+        if row.status in ("screened_out", "declined"):
+            return {**base, "step": {"kind": row.status, "code": _code(comp, row.status),
+                                     "redirect": _redirect(comp, row.status, row)}}
         step = dict(steps[row.step_index])
         kind = step["kind"]
-        s = self.study
         if kind == "consent" and s.get("consent_html"):
             step["html"] = s["consent_html"]
         if kind in ("free_play", "practice"):
@@ -182,13 +213,41 @@ class StudyService:
 
     def _demo_completions(self, db: DBSession, row: Session, step_index: int,
                           n: int) -> list[int]:
+        """Plays of each demonstration the server saw run start to end (`verified`)."""
         counts = [0] * n
         for payload in db.scalars(select(Event.payload).where(
                 Event.session_pk == row.id, Event.step_index == step_index,
-                Event.type == "demo_play_end")):
-            if payload.get("completed") and 0 <= payload["demo_index"] < n:
+                Event.type == "demo_play_end", Event.verified.is_(True))):
+            if 0 <= payload["demo_index"] < n:
                 counts[payload["demo_index"]] += 1
         return counts
+
+    def _check_demo(self, db: DBSession, row: Session, step: dict, ev: Event,
+                    p: schemas.DemoPlayStart | schemas.DemoPlayEnd, now: datetime) -> None:
+        """Refuse unknown demonstrations; time a play's end against its start, server-side.
+
+        A play counts as watched only if this end closes a start of the same demonstration
+        (the last play event of the step) and lasted, on the server's clock, at least the
+        replay's length minus a small tolerance (`steps.demo_required_ms`).
+        """
+        study = self.study_of(row)
+        demos = study["curricula"][step["domain"]][row.condition]
+        if p.demo_index >= len(demos):
+            raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not one of this "
+                           f"page's {len(demos)} demonstrations")
+        if not isinstance(p, schemas.DemoPlayEnd):
+            return
+        start = db.scalar(select(Event).where(
+            Event.session_pk == row.id, Event.step_index == row.step_index,
+            Event.type.in_(("demo_play_start", "demo_play_end")))
+            .order_by(Event.seq.desc()).limit(1))
+        if (start is None or start.type != "demo_play_start"
+                or start.payload["demo_index"] != p.demo_index):
+            ev.server_ms, ev.verified = None, False
+            return
+        ev.server_ms = max(0, int((now - aware(start.server_at)).total_seconds() * 1000))
+        need = demo_required_ms(len(demos[p.demo_index]["actions"]), study["demo_step_ms"])
+        ev.verified = bool(p.completed) and ev.server_ms >= need
 
     # -- events ---------------------------------------------------------------------------
 
@@ -219,6 +278,7 @@ class StudyService:
             raise ApiError(409, "wrong_step", f"event is for step {req.step_index} but the "
                            f"session is at step {row.step_index}")
         steps = self.steps(row)
+        study = self.study_of(row)
         step = steps[row.step_index]
         kind = step["kind"]
         if req.type != "page_load" and req.type not in ALLOWED[kind]:
@@ -237,6 +297,8 @@ class StudyService:
                    step_index=row.step_index, step_kind=kind, domain=step.get("domain"),
                    type=req.type,
                    payload=payload.model_dump(), client_ms=req.client_ms, server_at=now)
+        if req.type in ("demo_play_start", "demo_play_end"):
+            self._check_demo(db, row, step, ev, payload, now)
         db.add(ev)
         db.flush()
         row.last_active_at = now
@@ -245,11 +307,16 @@ class StudyService:
         if req.type in ("continue", "consent", "likert"):
             advance = True
             if kind == "demos":
-                n = len(self.study["curricula"][step["domain"]][row.condition])
+                n = len(study["curricula"][step["domain"]][row.condition])
                 done = self._demo_completions(db, row, row.step_index, n)
                 if min(done) < 1:
+                    missing = ", ".join(str(k + 1) for k, d in enumerate(done) if d < 1)
                     raise ApiError(409, "demos_unwatched", "every demonstration must be "
-                                   f"watched to the end at least once (plays: {done})")
+                                   "played and watched to the end at least once; not yet: "
+                                   f"demonstration {missing}")
+        elif req.type == "decline":
+            row.status = "declined"  # final: frees the assignment cell at once
+            row.completed_at = now
         elif req.type == "practice_attempt":
             result = self._practice(row, payload)
             advance = result["passed"]
@@ -268,7 +335,7 @@ class StudyService:
         return row, result
 
     def _practice(self, row: Session, p: schemas.PracticeAttempt) -> dict:
-        prac = self.study["practice"]
+        prac = self.study_of(row)["practice"]
         try:
             score = replay(prac["game"], prac["weights"], p.actions, require_end=False)
         except ScoringError as e:
@@ -276,18 +343,19 @@ class StudyService:
         energy = prac["start_energy"] + score.reward
         passed = score.finished and is_optimal(energy, prac["target_energy"])
         row.practice_attempts += 1
-        if not passed and row.practice_attempts >= self.study["practice_attempts"]:
+        if not passed and row.practice_attempts >= self.study_of(row)["practice_attempts"]:
             row.status = "screened_out"
             row.completed_at = utcnow()
-        return {"passed": passed, "energy": energy, "finished": score.finished,
-                "attempts_used": row.practice_attempts}
+        return {"passed": passed, "energy": energy, "target_energy": prac["target_energy"],
+                "finished": score.finished, "attempts_used": row.practice_attempts}
 
     def _score_test(self, db: DBSession, row: Session, step: dict, ev: Event,
                     p: schemas.TestAnswer, now: datetime) -> dict:
         dom = step["domain"]
-        t = self.study["tests"][dom][row.test_set][step["test_index"]]
+        study = self.study_of(row)
+        t = study["tests"][dom][row.test_set][step["test_index"]]
         try:
-            score = replay(t["game"], self.study["domain_info"][dom]["weights"], p.actions)
+            score = replay(t["game"], study["domain_info"][dom]["weights"], p.actions)
         except ScoringError as e:
             raise ApiError(422, "bad_moves", str(e)) from e
         entered = aware(row.step_entered_at)
@@ -301,6 +369,27 @@ class StudyService:
             server_ms=int((now - entered).total_seconds() * 1000), confidence=p.confidence))
         return {}
 
+    # -- problems reported by the page ----------------------------------------------------
+
+    def report(self, token: str | None, req: schemas.ClientReport) -> dict:
+        """Store a refused request the page reports (once per report id).
+
+        Accepted with any token, or none: the session may be the very thing that failed.
+        """
+        with self.Session() as db:
+            try:
+                with db.begin():
+                    pk = None
+                    if token and len(token) <= 64:
+                        pk = db.scalar(select(Session.id).where(Session.token == token))
+                    db.add(ClientReport(
+                        report_id=req.report_id, session_pk=pk, path=req.path,
+                        http_status=req.http_status, error=req.error, detail=req.detail,
+                        event=req.event, client_ms=req.client_ms, server_at=utcnow()))
+            except IntegrityError:
+                return {"ok": True, "duplicate": True}
+        return {"ok": True}
+
     # -- researcher -----------------------------------------------------------------------
 
     def progress(self) -> dict:
@@ -313,21 +402,42 @@ class StudyService:
                 .group_by(Session.status)).all())
             previews = db.scalar(select(func.count()).select_from(Session).where(
                 Session.is_preview.is_(True))) or 0
+            older = db.scalar(select(func.count()).select_from(Session).where(
+                Session.study_version != self.study["version"], Session.is_preview.is_(False),
+                Session.status == "in_progress")) or 0
         cells = [{"condition": c, "domain_order": ";".join(o), "test_set": t,
                   "occupied": counts[(c, o, t)], "completed": done[(c, o, t)]}
                  for (c, o, t) in all_cells(self.study)]
         return {"study_version": self.study["version"], "status": status,
-                "previews": previews, "cells": cells}
+                "previews": previews, "older_versions_in_progress": older, "cells": cells}
+
+
+def _proves(row: Session, token: str | None, session_id: str | None) -> bool:
+    """Whether the request shows it comes from whoever started `row` (constant-time)."""
+    if token and hmac.compare_digest(token.encode(), row.token.encode()):
+        return True
+    return bool(session_id and row.session_id
+                and hmac.compare_digest(session_id.encode(), row.session_id.encode()))
 
 
 def _public_info(info: dict) -> dict:
     return {k: info[k] for k in ("title", "task", "actions", "note", "keys", "effects_word")}
 
 
+#: The no-consent code of study files written before `--no-consent-code` existed.
+DEFAULT_DECLINED_CODE = "NOCONSENT"
+
+
+def _code(comp: dict, which: str) -> str:
+    if which == "declined":
+        return comp.get("declined", DEFAULT_DECLINED_CODE)
+    return comp[which]
+
+
 def _redirect(comp: dict, which: str, row: Session) -> str | None:
     if not comp.get("url") or row.is_preview:
         return None
-    return f"{comp['url']}{comp[which]}"
+    return f"{comp['url']}{_code(comp, which)}"
 
 
 def _first_error(e: ValidationError) -> str:

@@ -8,6 +8,16 @@ from __future__ import annotations
 
 import random
 
+#: Slack, in ms, allowed below a demonstration's replay length (network and timer jitter;
+#: the page's own replay runs one step longer than the check asks for).
+DEMO_TOLERANCE_MS = 250
+
+
+def demo_required_ms(n_actions: int, step_ms: int) -> int:
+    """Server-measured play time a demonstration of `n_actions` steps needs to count as
+    watched to the end: its replay length (`n_actions` x `step_ms`) minus the tolerance."""
+    return max(0, n_actions * step_ms - DEMO_TOLERANCE_MS)
+
 
 def shuffled_tests(seed: int, domain: str, n: int) -> list[int]:
     """Shuffled test positions for one domain (seeded per session, so it is reproducible)."""
@@ -33,7 +43,7 @@ def build_steps(study: dict, domain_order: list[str], test_set: int, seed: int) 
 
 #: Event types a participant may send on each kind of step (plus `page_load` anywhere).
 ALLOWED = {
-    "consent": {"consent"},
+    "consent": {"consent", "decline"},
     "instructions": {"continue"},
     "free_play": {"continue"},
     "practice": {"practice_attempt"},

@@ -19,6 +19,10 @@ REFERENCE_PROPORTION = {("counterfactual_only", "delivery"): 0.7,
 
 
 def check_condition(condition: str) -> str:
+    if condition == "closed_loop":
+        raise ValueError("closed_loop adapts to the learner's answers, so it has no fixed "
+                         "curriculum: run it with `cfteach simulate --conditions closed_loop` "
+                         "or cfteach.closedloop.ClosedLoopTeacher (docs/closed-loop.md)")
     if condition not in CONDITIONS:
         raise ValueError(f"unknown condition {condition!r} (allowed: {', '.join(CONDITIONS)})")
     return condition

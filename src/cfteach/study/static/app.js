@@ -2,6 +2,7 @@
 // All study logic (order, assignment, scoring, gating) lives on the server; a reload simply
 // asks the server again and lands on the same page.
 import { drawGrid } from "./grid.js";
+import { flushPending, getToken, onTrouble, post, report, request, setToken } from "./net.js";
 
 const app = document.getElementById("app");
 const KEYMAP = { ArrowUp: "up", ArrowDown: "down", ArrowLeft: "left", ArrowRight: "right",
@@ -10,26 +11,35 @@ const KEY_LABELS = { up: "up arrow", down: "down arrow", left: "left arrow",
   right: "right arrow", pickup: "p", dropoff: "d" };
 const ACTION_TEXT = { up: "move up", down: "move down", left: "move left",
   right: "move right", pickup: "pick up", dropoff: "drop" };
-let token = sessionStorage.getItem("cfteach-token");
+const GAME_KEYS = new Set([...Object.keys(KEYMAP), "r", "R"]);
+const TEXT_INPUTS = new Set(["text", "number", "email", "search", "tel", "url", "password"]);
+setToken(sessionStorage.getItem("cfteach-token"));
 let keyHandler = null;
 let cleanup = [];
 
-// Arrow keys and space never scroll the page; keys typed into a form field (a Likert radio,
-// a text box) stay there and do not move Chip.
+// True where a key press types text (a comment box, the age field, a drop-down list).
+function typesText(t) {
+  return t instanceof HTMLTextAreaElement || t instanceof HTMLSelectElement ||
+    (t instanceof HTMLInputElement && TEXT_INPUTS.has(t.type)) || Boolean(t?.isContentEditable);
+}
+
+// While a game is on screen its keys always go to the game, even when a radio button (the
+// confidence item) or a button has the focus: otherwise the arrows would change the answer
+// instead of moving Chip. Only text fields keep their keys. Arrow keys and space never
+// scroll the page.
 window.addEventListener("keydown", (e) => {
-  const inField = e.target instanceof HTMLTextAreaElement ||
-    e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement;
-  if (["ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight", " "].includes(e.key) && !inField) {
+  if (typesText(e.target)) return;
+  const plain = !e.ctrlKey && !e.metaKey && !e.altKey;  // Ctrl+R still reloads
+  if (keyHandler && plain && GAME_KEYS.has(e.key)) {
+    e.preventDefault();
+    if (!e.repeat) keyHandler(e);
+    return;
+  }
+  const control = e.target instanceof HTMLInputElement || e.target instanceof HTMLButtonElement;
+  if (["ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight", " "].includes(e.key) && !control) {
     e.preventDefault();
   }
-  if (keyHandler && !e.repeat && !inField) keyHandler(e);
 }, { passive: false });
-
-function uuid() {
-  if (crypto.randomUUID) return crypto.randomUUID();
-  const b = crypto.getRandomValues(new Uint8Array(16));
-  return Array.from(b, (x) => x.toString(16).padStart(2, "0")).join("");
-}
 
 function h(tag, attrs = {}, ...children) {
   const e = document.createElement(tag);
@@ -47,66 +57,46 @@ function h(tag, attrs = {}, ...children) {
   return e;
 }
 
-async function api(method, path, body) {
-  const headers = { "Content-Type": "application/json" };
-  if (token) headers["X-Session-Token"] = token;
-  const res = await fetch(path, { method, headers, credentials: "same-origin",
-    body: body === undefined ? undefined : JSON.stringify(body) });
-  const data = await res.json().catch(() => ({}));
-  return { status: res.status, data };
-}
-
-// Events are sent one at a time, in order; a lost response is retried with the same id, and
-// the server answers a retried (already stored) event with 409 duplicate_event. Until the
-// server has answered, an event also waits in localStorage, so a reload or a closed tab
-// sends it on the next visit instead of losing it.
-let queue = Promise.resolve();
-const pendingKey = () => `cfteach-pending-${token}`;
-function loadPending() {
-  try { return JSON.parse(localStorage.getItem(pendingKey()) || "[]"); } catch { return []; }
-}
-function savePending(list) {
-  try { localStorage.setItem(pendingKey(), JSON.stringify(list)); } catch { /* full/blocked */ }
-}
-function dropPending(id) { savePending(loadPending().filter((e) => e.event_id !== id)); }
-
-async function send(ev, attempts) {
-  for (let attempt = 0; attempt < attempts; attempt++) {
-    try {
-      const r = await api("POST", "/api/event", ev);
-      dropPending(ev.event_id);
-      if (r.status === 200) return r.data;
-      if (r.status === 409 && r.data.error === "duplicate_event") {
-        const s = await api("GET", "/api/state");
-        return { ok: true, duplicate: true, state: s.data };
-      }
-      return { ok: false, status: r.status, ...r.data };
-    } catch (err) {
-      await new Promise((ok) => setTimeout(ok, 300 * 2 ** attempt));
-    }
+// What the participant reads when the server refused a request for good. The server's own
+// message (which may quote raw data) goes only into the report the researcher sees.
+function plainMessage(r) {
+  switch (r.error) {
+    case "wrong_step":
+    case "session_finished":
+      return "This page was out of date (is the study open in another tab?). Here is " +
+        "where you are in the study now.";
+    case "demos_unwatched":
+      return "Please watch every demonstration to the end before continuing.";
+    case "no_session":
+      return "We could not find your study session. Please open the study again from " +
+        "its link on Prolific.";
+    case "study_changed":
+      return "This study has changed since you started it. Please contact the " +
+        "researchers through Prolific.";
+    case "bad_parameter":
+      return "The study link looks incomplete. Please open it again from Prolific.";
+    default:
+      return "Sorry, your last step could not be saved. The researchers have been " +
+        "notified. Please try again; if this keeps happening, contact them through Prolific.";
   }
-  return { ok: false, error: "network", detail: "could not reach the server; please check " +
-    "your connection and try again" };
 }
 
-function post(stepIndex, type, payload = {}) {
-  const ev = { event_id: uuid(), step_index: stepIndex, type, payload,
-    client_ms: Math.round(performance.timeOrigin + performance.now()) };
-  savePending([...loadPending(), ev]);
-  const job = queue.then(() => send(ev, 6));
-  queue = job.catch(() => {});
-  return job;
+// An event the server refused for good (net.js has already reported it): show the page the
+// server is really at, with a plain message above what comes next.
+async function refused(r) {
+  if (await refresh()) showError(plainMessage(r));
 }
 
-async function flushPending() {
-  for (const ev of loadPending()) await send(ev, 2);
+/** Queue an event; a refusal is handled here (callers see `ok: false` and stop). */
+async function send(stepIndex, type, payload) {
+  const r = await post(stepIndex, type, payload);
+  if (!r.ok) await refused(r);
+  return r;
 }
 
 async function advance(stepIndex, type, payload) {
-  const r = await post(stepIndex, type, payload);
+  const r = await send(stepIndex, type, payload);
   if (r.ok) render(r.state);
-  else if (r.error === "wrong_step" || r.error === "session_finished") refresh();
-  else showError(r.detail || "Something went wrong; please try again.");
   return r;
 }
 
@@ -144,6 +134,7 @@ class Game {
     this.s = 0;
     this.moves = [];
     this.ended = false;
+    this.banner = null;  // what the board says once the game has ended (default below)
     this.value = this.energy ? this.energy.start : null;
     this.trail = [this.game.states[0].agent];
     if (count) this.resets += 1;
@@ -179,7 +170,7 @@ class Game {
   draw() {
     const st = this.game.states[this.s];
     this.host.replaceChildren(drawGrid(this.layout, st, { trail: this.trail, label: this.label,
-      banner: this.ended ? "Game completed!" : null }));
+      banner: this.ended ? (this.banner || { lines: ["Game completed!"] }) : null }));
     this.host.dataset.moves = this.moves.join(" ");
     this.host.dataset.ended = String(this.ended);
   }
@@ -236,8 +227,7 @@ const pages = {
       h("div", { class: "checks" }, boxes.map(([k, label]) => h("label", {},
         label, " ", h("input", { type: "checkbox", id: `c-${k}`, onchange: update })))),
       status, agree, " ",
-      h("button", { id: "decline", onclick: () => app.replaceChildren(h("p", {
-        text: "Thank you for your interest. You may now close this window." })) },
+      h("button", { id: "decline", onclick: () => advance(step, "decline", {}) },
       "No thanks, I do not want to do this study"));
     update();
   },
@@ -291,6 +281,7 @@ const pages = {
       keys: s.game.actions, energy: { start: s.start_energy, weights: s.weights },
       label: "practice game",
       onMove: (g) => {
+        if (!g.moves.length) msg.textContent = "";  // a new attempt: the last verdict goes
         info.textContent = `Current energy: ${Math.round(g.value)}%. Attempts remaining: ${left()}`;
         if (!g.ended && g.value <= 0) submit(g);
       },
@@ -298,27 +289,49 @@ const pages = {
     });
     const t0 = performance.now();
     let sending = false;
+    const target = s.target_energy;
     async function submit(g) {
       if (sending) return;
       sending = true;
-      const r = await post(st.step_index, "practice_attempt",
+      const reached = Math.round(g.value);  // the server's figure replaces it below
+      g.banner = { lines: [`${reached}% energy left`] };
+      g.draw();
+      const r = await send(st.step_index, "practice_attempt",
         { actions: g.moves, time_ms: Math.round(performance.now() - t0) });
       sending = false;
-      if (!r.ok) { showError(r.detail || "Could not save your attempt."); return; }
-      used = r.attempts_used;
-      if (r.passed) {
+      if (!r.ok) return;  // refused: the page has been redrawn with a message
+      // A retried attempt whose first answer was lost comes back as a duplicate: the
+      // session's state then tells whether it passed.
+      const passed = r.duplicate ? r.state.status !== "screened_out" &&
+        r.state.step.kind !== "practice" : r.passed;
+      const energy = Math.round(r.energy ?? g.value);
+      const finished = r.finished ?? g.game.terminal[g.s];
+      used = r.duplicate ? (r.state.step.attempts_used ?? used + 1) : r.attempts_used;
+      if (passed) {
+        g.banner = { lines: ["Game completed!", `${energy}% energy left`] };
+        g.draw();
         msg.textContent = "Good job completing the task with the maximum possible energy " +
           "remaining! Click 'Continue' below.";
         keyHandler = null;
         app.appendChild(continueButton("Continue", () => render(r.state), { id: "next" }));
-      } else if (r.state.status === "screened_out") {
+        return;
+      }
+      g.ended = true;
+      g.banner = finished
+        ? { lines: ["Not enough energy", `${energy}% left, ${target}% needed`], tone: "fail" }
+        : { lines: ["Out of energy", `${energy}% left, ${target}% needed`], tone: "fail" };
+      g.draw();
+      const what = finished
+        ? `You completed the task with ${energy}% energy left, but you need to finish with ` +
+          `${target}% (the most possible).`
+        : `Chip ran out of energy (${energy}% left) before the task was done; you need to ` +
+          `finish the task with ${target}% energy left.`;
+      if (r.state.status === "screened_out") {
         keyHandler = null;
-        msg.textContent = "I'm sorry to inform you that you don't qualify for this study.";
+        msg.textContent = `${what} I'm sorry to inform you that you don't qualify for this study.`;
         app.appendChild(continueButton("Continue", () => render(r.state), { id: "next" }));
       } else {
-        g.ended = true;
-        msg.textContent = `You completed the task with less than ${s.target_energy}% energy ` +
-          "remaining! Press 'r' to reset and try again.";
+        msg.textContent = `${what} Press 'r' to reset and try again.`;
         game.resetAfterEnd = true;
         info.textContent = `Attempts remaining: ${left()}`;
       }
@@ -395,7 +408,7 @@ const pages = {
       if (timer) clearInterval(timer);
       timer = null;
       if (playing) {
-        post(st.step_index, "demo_play_end", { demo_index: playing.k, completed,
+        send(st.step_index, "demo_play_end", { demo_index: playing.k, completed,
           watch_ms: Math.round(performance.now() - playing.t0) });
         playing = null;
       }
@@ -420,7 +433,7 @@ const pages = {
       stop(false);
       const d = s.demos[k];
       playing = { k, t0: performance.now() };
-      post(st.step_index, "demo_play_start", { demo_index: k });
+      send(st.step_index, "demo_play_start", { demo_index: k });
       let f = 0;
       const trail = [d.states[0].agent];
       playBtn.disabled = true;
@@ -575,6 +588,12 @@ const pages = {
     finish(st, "Thank you for your time. Unfortunately you don't qualify for this study. " +
       "Please return your submission on Prolific using the code below.");
   },
+
+  declined(st) {
+    finish(st, "Thank you for your interest. As you did not consent, please return your " +
+      "submission on Prolific (\"Stop without completing\" or \"Return\") so another " +
+      "participant can take your place; you may also enter the code below.");
+  },
 };
 
 function finish(st, text) {
@@ -611,22 +630,47 @@ function render(st) {
 }
 
 async function refresh() {
-  const r = await api("GET", "/api/state");
-  if (r.status !== 200) { showError(r.data.detail || "Could not load the study."); return; }
+  const r = await request("GET", "/api/state");
+  if (r.status !== 200) { await cannotGo("/api/state", r); return false; }
   render(r.data);
+  return true;
 }
+
+// The PID already has a session and this browser cannot prove it is the one that started
+// it (no stored token, another Prolific SESSION_ID): the server sent no token.
+function showElsewhere(detail) {
+  app.dataset.step = "elsewhere";
+  app.replaceChildren(h("h1", { text: "Study already in progress" }), h("p", { id: "elsewhere",
+    text: detail || "This study is already in progress in another browser." }));
+}
+
+// The study cannot go on from here (no session, a changed study, a damaged link): report
+// it and say so plainly.
+async function cannotGo(path, r) {
+  keyHandler = null;
+  app.replaceChildren(h("h1", { text: "The study cannot continue" }));
+  showError(plainMessage(r.data));
+  await report(path, r);
+}
+
+// Shown while requests are being retried; the page itself stays usable.
+onTrouble((on) => {
+  const box = document.getElementById("net-status");
+  if (box) box.hidden = !on;
+});
 
 async function main() {
   const q = new URLSearchParams(window.location.search);
   const body = { prolific_pid: q.get("PROLIFIC_PID"), study_id: q.get("STUDY_ID"),
-    session_id: q.get("SESSION_ID"), mode: q.get("mode"), token };
-  const r = await api("POST", "/api/session", body);
-  if (r.status !== 200) { showError(r.data.detail || "Could not start the study."); return; }
-  token = r.data.token;
-  sessionStorage.setItem("cfteach-token", token);
+    session_id: q.get("SESSION_ID"), mode: q.get("mode"), token: getToken() };
+  const r = await request("POST", "/api/session", body);
+  if (r.status === 409 && r.data.error === "session_elsewhere") { showElsewhere(r.data.detail); return; }
+  if (r.status !== 200) { await cannotGo("/api/session", r); return; }
+  setToken(r.data.token);
+  sessionStorage.setItem("cfteach-token", r.data.token);
   await flushPending();
-  const s = await api("GET", "/api/state");
-  if (s.status !== 200) { showError(s.data.detail || "Could not load the study."); return; }
+  const s = await request("GET", "/api/state");
+  if (s.status !== 200) { await cannotGo("/api/state", s); return; }
   if (r.data.resumed) await post(s.data.step_index, "page_load", {});
   render(s.data);
 }

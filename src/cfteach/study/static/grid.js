@@ -139,10 +139,18 @@ export function drawGrid(layout, state, opts = {}) {
     shape(layout.cargo.style, x0 + CELL * 0.6, y0 + 2, CELL * 0.38, svg,
       { "data-object": layout.cargo.key, "data-carried": "true" });
   }
-  if (opts.banner) {
-    const t = el("text", { x: W / 2, y: H / 2, "text-anchor": "middle", class: "banner",
-      "data-kind": "banner" }, svg);
-    t.textContent = opts.banner;
+  if (opts.banner) {  // a string, or {lines: [...], tone: "fail"} (tone: a CSS class)
+    const b = typeof opts.banner === "string" ? { lines: [opts.banner] } : opts.banner;
+    const size = b.lines.length > 1 ? 24 : 28, gap = size * 1.25;
+    const top = H / 2 - (gap * (b.lines.length - 1)) / 2;
+    el("rect", { x: 0, y: top - size * 1.1, width: W, height: gap * (b.lines.length - 1) +
+      size * 1.6, class: "banner-back", "data-kind": "banner-back" }, svg);
+    const t = el("text", { x: W / 2, y: top, "text-anchor": "middle",
+      class: `banner${b.tone ? ` ${b.tone}` : ""}`, "data-kind": "banner",
+      "font-size": size }, svg);
+    b.lines.forEach((line, i) => {
+      el("tspan", { x: W / 2, y: top + i * gap }, t).textContent = line;
+    });
   }
   return svg;
 }

@@ -1,0 +1,150 @@
+"""`cfteach export minari`: the robot's demonstrations and people's test answers as Minari
+datasets (docs/ecosystem.md). Heavy imports happen inside the commands."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+export_app = typer.Typer(help="Write cfteach data in other tools' formats (docs/ecosystem.md).",
+                         no_args_is_help=True)
+minari_app = typer.Typer(help="Minari datasets (offline RL / IRL), one per domain.",
+                         no_args_is_help=True)
+export_app.add_typer(minari_app, name="minari")
+
+_ROOT_HELP = "Minari root folder (default: $MINARI_DATASETS_PATH, else ~/.minari/datasets)."
+
+
+def _fail(message: str) -> None:
+    typer.echo(f"Error: {message}", err=True)
+    raise typer.Exit(2)
+
+
+def _load_domain(name_or_path: str):  # noqa: ANN202 - a cfteach Domain
+    from cfteach import domains
+
+    try:
+        return domains.load(name_or_path)
+    except (ValueError, OSError, KeyError) as e:
+        _fail(f"domain {name_or_path!r}: {e}")
+
+
+def _domain_arg(name_or_path: str, domain) -> str | None:  # noqa: ANN001
+    """How a dataset reader loads the domain: nothing for built-ins, else the file's path."""
+    from cfteach import domains
+
+    if domain.name in domains.builtin_names() and name_or_path == domain.name:
+        return None
+    return str(Path(name_or_path).resolve())
+
+
+def _write(episodes, dataset_id: str, domain, domain_arg, root, description: str,  # noqa: ANN001
+           force: bool, check: bool) -> None:
+    from cfteach.ecosystem import check_replay, write_dataset
+
+    try:
+        ds = write_dataset(episodes, dataset_id, domain, domain_arg=domain_arg, root=root,
+                           description=description, force=force)
+        checked = check_replay(ds) if check else None
+    except (ValueError, ImportError) as e:
+        _fail(str(e))
+    typer.echo(f"{dataset_id}: {ds.total_episodes} episodes, {ds.total_steps} steps"
+               + (f"; all {checked} replay to their rewards" if check else ""))
+
+
+@minari_app.command("demos")
+def demos(
+    domain: str = typer.Option(..., "--domain", help="Built-in domain name or domain file."),
+    curriculum: list[Path] = typer.Option(  # noqa: B006 - typer's list option
+        [], "--curriculum", help="Curriculum JSON (cfteach teach / reproduce output); "
+        "repeat for several. Without it: every candidate demonstration."),
+    instances: str = typer.Option("", help="Candidates only: comma-separated instance "
+                                  "indices to keep (default all)."),
+    dataset_id: str = typer.Option("", help="Dataset id (default cfteach/DOMAIN/curricula-v0 "
+                                   "or cfteach/DOMAIN/candidates-v0)."),
+    root: Path | None = typer.Option(None, help=_ROOT_HELP),
+    force: bool = typer.Option(False, help="Replace an existing dataset of that id."),
+    check: bool = typer.Option(True, help="Replay every episode after writing."),
+) -> None:
+    """The robot's demonstrations (rewards under w*) as a Minari dataset."""
+    from cfteach.ecosystem import candidate_episodes, curriculum_episodes
+
+    dom = _load_domain(domain)
+    try:
+        if curriculum:
+            episodes = []
+            for path in curriculum:
+                try:
+                    data = json.loads(path.read_text(encoding="utf-8"))
+                except (OSError, json.JSONDecodeError) as e:
+                    _fail(f"{path}: {e}")
+                episodes += curriculum_episodes(dom, data)
+            kind, what = "curricula", f"{len(curriculum)} curriculum file(s)"
+        else:
+            keep = [int(x) for x in instances.split(",") if x.strip()] or None
+            episodes = candidate_episodes(dom, env_indices=keep)
+            kind, what = "candidates", "every candidate demonstration"
+    except ValueError as e:
+        _fail(str(e))
+    _write(episodes, dataset_id or f"cfteach/{dom.name}/{kind}-v0", dom,
+           _domain_arg(domain, dom), root,
+           f"cfteach: the robot's demonstrations in domain {dom.name} ({what}); "
+           "rewards are w* . phi", force, check)
+
+
+@minari_app.command("answers")
+def answers(
+    study: Path = typer.Option(..., "--study", help="Study folder (cfteach study init)."),
+    export: Path = typer.Option(..., "--export", help="Its export (cfteach study export)."),
+    domains: str = typer.Option("", help="Comma-separated domains (default: all the "
+                                "study's); a domain file path for user domains."),
+    status: str = typer.Option("", help="Comma-separated participant statuses to keep, "
+                               "e.g. completed (default: all exported)."),
+    prefix: str = typer.Option("cfteach", help="Datasets are PREFIX/DOMAIN/answers-v0."),
+    root: Path | None = typer.Option(None, help=_ROOT_HELP),
+    force: bool = typer.Option(False, help="Replace existing datasets of those ids."),
+    check: bool = typer.Option(True, help="Replay every episode after writing."),
+) -> None:
+    """People's test answers (one episode per participant x test) as Minari datasets."""
+    from cfteach.ecosystem import answer_episodes
+    from cfteach.ecosystem.study_files import read_study
+
+    try:
+        names = [d.strip() for d in domains.split(",") if d.strip()] or read_study(study)["domains"]
+    except ValueError as e:
+        _fail(str(e))
+    keep = [s.strip() for s in status.split(",") if s.strip()] or None
+    for name in names:
+        dom = _load_domain(name)
+        try:
+            episodes = answer_episodes(dom, study, export, statuses=keep)
+        except ValueError as e:
+            _fail(str(e))
+        if not episodes:
+            typer.echo(f"{dom.name}: no answers to write")
+            continue
+        _write(episodes, f"{prefix}/{dom.name}/answers-v0", dom, _domain_arg(name, dom), root,
+               f"cfteach user study: people's test answers in domain {dom.name}, one episode "
+               "per participant x test; rewards are w* . phi", force, check)
+
+
+@minari_app.command("check")
+def check_cmd(
+    dataset_id: str = typer.Argument(..., help="A local Minari dataset id."),
+    root: Path | None = typer.Option(None, help=_ROOT_HELP),
+) -> None:
+    """Replay every episode of a dataset in its recovered environment."""
+    from cfteach.ecosystem import check_replay, load_dataset
+
+    try:
+        n = check_replay(load_dataset(dataset_id, root))
+    except (ValueError, ImportError, FileNotFoundError) as e:
+        _fail(str(e))
+    typer.echo(f"{dataset_id}: all {n} episodes replay to their rewards")
+
+
+def register(app: typer.Typer) -> None:
+    """Add the `cfteach export` command group to the app."""
+    app.add_typer(export_app, name="export")

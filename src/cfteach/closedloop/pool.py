@@ -1,0 +1,165 @@
+"""What a closed-loop teacher works with, computed once per domain and shared by every
+learner it teaches: candidate lessons with their counterfactual constraints, candidate tests
+with their BEC' constraints (and the alternative answers those constraints come from), and
+the held-out tests that are never used during teaching.
+
+Lessons are the paper's counterfactual demonstrations: a demonstration's constraints are
+``mu(demo) - mu(human plan)`` for a pool of human models drawn from the prior (Algorithm 1's
+rows, `cfteach.bec.counterfactual_rows`). Which of them matter for a learner is decided at
+run time by the teacher's particle belief. Tests carry the one-action and counterfactual rows
+(Algorithm 2's BEC'): a learner with weights ``w`` answers a test optimally iff ``w`` satisfies
+them all.
+
+The few hundred distinct row sets of a domain are built from fewer than a few hundred distinct
+rows, so every question the teacher asks of its 1,000 particles is one small matrix product.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import sparse
+
+from cfteach.bec import counterfactual_rows, demo_set, one_action_rows, resolve_domain
+from cfteach.bec.demos import DemoSet
+from cfteach.bec.rows import RowSet
+from cfteach.domains import Domain
+from cfteach.teaching.sampling import sample_models
+
+#: A particle satisfies a row when ``row . w >= -SATISFIED_TOL`` (rows are integer counts).
+SATISFIED_TOL = 1e-9
+
+
+@dataclass(eq=False)
+class RowIndex:
+    """Distinct row sets of many demonstrations over one table of distinct rows.
+
+    ``incidence[k, u] = 1`` when distinct set k holds row ``rows[u]``; ``slot[d]`` is demo d's
+    set (-1 when it has no rows); ``members[k]`` the demos sharing set k.
+    """
+
+    rows: np.ndarray          # [U, F] float
+    incidence: sparse.csr_matrix  # [K, U]
+    slot: np.ndarray          # [D]
+    members: list[np.ndarray]
+
+    @classmethod
+    def build(cls, rs: RowSet, demos: np.ndarray) -> RowIndex:
+        slot = np.full(rs.n_demos, -1, dtype=np.int64)
+        keys: dict[bytes, int] = {}
+        members: list[list[int]] = []
+        set_rows: list[np.ndarray] = []
+        for d in demos.tolist():
+            r = rs.of(d)
+            if not len(r):
+                continue
+            k = keys.setdefault(r.tobytes(), len(keys))
+            if k == len(members):
+                members.append([])
+                set_rows.append(r)
+            members[k].append(d)
+            slot[d] = k
+        if set_rows:
+            stacked = np.vstack(set_rows)
+            uniq, inverse = np.unique(stacked, axis=0, return_inverse=True)
+            owner = np.repeat(np.arange(len(set_rows)), [len(r) for r in set_rows])
+            inc = sparse.csr_matrix((np.ones(len(owner), dtype=np.float32),
+                                     (owner, inverse.ravel())), shape=(len(set_rows), len(uniq)))
+        else:
+            uniq = np.zeros((0, rs.F))
+            inc = sparse.csr_matrix((0, 0), dtype=np.float32)
+        return cls(uniq.astype(float), inc, slot, [np.asarray(m) for m in members])
+
+    @property
+    def n_sets(self) -> int:
+        return len(self.members)
+
+    def satisfied(self, particles: np.ndarray) -> np.ndarray:
+        """``[K, P]`` bool: particle p satisfies every row of set k."""
+        if not self.n_sets:
+            return np.zeros((0, len(particles)), dtype=bool)
+        broken = (self.rows @ particles.T < -SATISFIED_TOL).astype(np.float32)  # [U, P]
+        return np.asarray(self.incidence @ broken) == 0
+
+
+@dataclass(eq=False)
+class LessonPool:
+    """Candidate lessons and tests of one domain for closed-loop teaching (module docstring)."""
+
+    domain: Domain
+    ds: DemoSet
+    profile: str
+    seed: int
+    human_models: np.ndarray     # [M, F] drawn from the prior
+    lesson_rows: RowSet          # counterfactual rows of every demo
+    test_rows: RowSet            # one-action + counterfactual rows of every demo
+    held_out: frozenset[int]     # demo indices never used as diagnostic tests
+    lessons: RowIndex
+    tests: RowIndex
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def F(self) -> int:  # noqa: N802 - the feature count, as elsewhere
+        return self.ds.F
+
+    def test_alternatives(self, d: int) -> np.ndarray:
+        """Feature counts of the other answers test d's constraints compare against:
+        ``mu* - row`` for every row (one-action deviations and human-model plans)."""
+        return self.ds.mu[d][None, :].astype(float) - self.test_rows.of(d).astype(float)
+
+
+def held_out_demos(ds: DemoSet, tests: Any) -> list[int]:
+    """Demo indices of a test set (a `TestSet`, its JSON, or ``(env_index, state)`` pairs)."""
+    if tests is None:
+        return []
+    if hasattr(tests, "to_json"):
+        tests = tests.to_json()
+    pairs: Iterable[Any]
+    if isinstance(tests, dict):
+        pairs = [t for level in tests.get("tests", {}).values() for t in level]
+    else:
+        pairs = list(tests)
+    out = []
+    for t in pairs:
+        if isinstance(t, int | np.integer):
+            if not 0 <= int(t) < ds.D:
+                raise ValueError(f"held-out demo index {t} outside 0..{ds.D - 1}")
+            out.append(int(t))
+            continue
+        if isinstance(t, dict):
+            inst = ds.domain.instance(int(t["env_index"]) if "env_index" in t else t["env_code"])
+            state = inst.state_from_json(t["start_state"])
+            out.append(ds.index(inst.index, state))
+            continue
+        env, state = t
+        out.append(ds.index(int(env), tuple(state)))
+    return sorted(set(out))
+
+
+def build_pool(domain: Domain | str, *, profile: str = "default", human_models: int = 32,
+               seed: int = 0, held_out: Any = None) -> LessonPool:
+    """Precompute a domain's lessons and tests (see the module docstring).
+
+    `held_out`: the post-teaching tests (a `TestSet`, its JSON or demo indices); they are
+    excluded from the diagnostic tests and used by the stopping rule.
+    """
+    if isinstance(human_models, bool) or not isinstance(human_models, int) or human_models < 1:
+        raise ValueError(f"human_models must be an integer >= 1, got {human_models!r}")
+    dom = resolve_domain(domain)
+    ds = demo_set(dom, profile)
+    prior = np.asarray(dom.prior, dtype=np.int64).reshape(-1, ds.F)
+    W = sample_models(profile, prior, human_models, np.random.default_rng([seed, 7]), ds.F)
+    if not len(W):
+        raise ValueError(f"{dom.name}: the prior region has no area; no human model to draw")
+    cf, _, _ = counterfactual_rows(ds, W)
+    joint = one_action_rows(ds).union(cf)
+    held = frozenset(held_out_demos(ds, held_out))
+    every = np.arange(ds.D)
+    return LessonPool(domain=dom, ds=ds, profile=profile, seed=seed, human_models=W,
+                      lesson_rows=cf, test_rows=joint, held_out=held,
+                      lessons=RowIndex.build(cf, every), tests=RowIndex.build(joint, every),
+                      settings={"human_models": human_models, "profile": profile,
+                                "seed": seed})

@@ -1,0 +1,106 @@
+"""Simulated learners taught by the closed-loop teacher, and the open-loop control at equal
+budget.
+
+Each learner has a teacher of its own (`cfteach.closedloop.ClosedLoopTeacher`): it is shown
+the teacher's demonstrations and feedback (learning from feedback as from a demonstration:
+the optimal answer from the failed test's start), answers its diagnostic tests as it answers
+any test, and the teacher only ever sees those answers. After teaching, every learner takes
+the same held-out post-teaching tests as the open-loop conditions.
+
+`equal_budget_demos` builds the control that tells adaptivity apart from mere exposure:
+the `proposed` curriculum with as many demonstrations as closed-loop showed demonstrations
+and feedback on average, repeated from the start when it runs out (blind repetition).
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+CLOSED_LOOP = "closed_loop"
+EQUAL_BUDGET = "proposed_equal_budget"
+
+
+@cache
+def _pool(domain_ref: Any, profile: str, seed: int, held_key: str, human_models: int):
+    """The lesson pool of one (domain, replication), built once per worker process."""
+    from cfteach.closedloop import build_pool
+    from cfteach.simulate.sweep import load_domain
+
+    held = [int(x) for x in held_key.split(",") if x]
+    return build_pool(load_domain(domain_ref), profile=profile, human_models=human_models,
+                      seed=seed, held_out=held)
+
+
+def held_key(domain_ref: Any, profile: str, tests: dict[str, Any]) -> str:
+    """The held-out tests as a hashable key of demo indices (for the worker cache)."""
+    from cfteach.bec import demo_set
+    from cfteach.closedloop import held_out_demos
+    from cfteach.simulate.sweep import load_domain
+
+    ds = demo_set(load_domain(domain_ref), profile)
+    return ",".join(str(d) for d in held_out_demos(ds, tests))
+
+
+def run_session(teacher: Any, learners: Any) -> dict[str, int]:
+    """Drive one teacher with one simulated learner (`Learners` with n = 1) to the end."""
+    pool = teacher.pool
+    while (item := teacher.next()) is not None:
+        shown = item.to_json(pool)
+        if item.kind == "test":
+            ans = learners.answer([shown])
+            teacher.observe({"feature_counts": ans["feature_counts"][0, 0].tolist(),
+                             "finished": bool(ans["finished"][0, 0])})
+        else:
+            learners.observe(shown)  # feedback shows the optimal answer: a demonstration
+            teacher.observe({})
+    return teacher.counts()
+
+
+def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
+    """Teach and test one block of learners, each with its own teacher; runs in a worker."""
+    from cfteach.closedloop import ClosedLoopTeacher, TeacherSettings
+    from cfteach.simulate.learners import Learners
+    from cfteach.simulate.sweep import load_domain
+
+    dom = load_domain(chunk["domain"])
+    pool = _pool(chunk["domain"], chunk["profile"], chunk["material_seed"], chunk["held_key"],
+                 chunk["pool_human_models"])
+    settings = TeacherSettings(**chunk.get("teacher", {}))
+    ss = np.random.SeedSequence(chunk["entropy"])
+    keys = ("correct", "reward", "finished", "contains_w_star", "belief_area",
+            "belief_area_se", "belief_constraints", "ignored_updates")
+    out: dict[str, list] = {k: [] for k in (*keys, "items", "demos", "tests", "feedback")}
+    for child in ss.spawn(chunk["n"]):
+        learner_rng, teacher_seed = np.random.default_rng(child), child.generate_state(1)[0]
+        learners = Learners(dom, chunk["model"], 1, rng=learner_rng)
+        teacher = ClosedLoopTeacher(pool, settings, seed=int(teacher_seed))
+        counts = run_session(teacher, learners)
+        ans = learners.answer(chunk["tests"]) if chunk["tests"] else None
+        areas, se = learners.belief_area_estimates()
+        for k, v in (("correct", None if ans is None else ans["correct"][0]),
+                     ("reward", None if ans is None else ans["reward"][0]),
+                     ("finished", None if ans is None else ans["finished"][0]),
+                     ("contains_w_star", learners.contains(dom.weights)[0]),
+                     ("belief_area", areas[0]), ("belief_area_se", se[0]),
+                     ("belief_constraints", len(learners.beliefs[0])),
+                     ("ignored_updates", learners.ignored[0]),
+                     ("items", sum(counts.values())), ("demos", counts["demonstration"]),
+                     ("tests", counts["test"]), ("feedback", counts["feedback"])):
+            out[k].append(v)
+    res: dict[str, Any] = {k: np.asarray(v) for k, v in out.items()}
+    res["optimal_reward"] = None if ans is None else ans["optimal_reward"]
+    if not chunk["tests"]:
+        res.update(correct=None, reward=None, finished=None)
+    return res
+
+
+def equal_budget_demos(curriculum: dict[str, Any], budget: int) -> list[dict[str, Any]]:
+    """The curriculum's demonstrations, repeated from the start until `budget` are shown."""
+    demos = list(curriculum["demos"])
+    if budget < 1 or not demos:
+        return []
+    return [demos[k % len(demos)] for k in range(budget)]
+
