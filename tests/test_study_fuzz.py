@@ -157,6 +157,8 @@ def test_schema_states_which_prolific_ids_are_valid(app: FastAPI) -> None:
         assert (r.status_code == 200) == bool(re.match(pattern, pid)), (pid, r.text)
         if r.status_code != 200:
             assert r.status_code == 422 and "prolific_pid" in r.json()["detail"]
+            if "\n" not in pid:  # the page's "link looks incomplete" message keys on it
+                assert r.json()["error"] == "bad_parameter" and "PROLIFIC_PID" in r.text
 
 
 def test_schema_states_each_event_type_and_its_payload(app: FastAPI) -> None:
@@ -193,3 +195,34 @@ def test_every_refusal_has_the_documented_error_body(app: FastAPI) -> None:
     assert r.status_code == 404 and sorted(r.json()) == ["detail", "error"]
     r = client.put("/api/event", json={})
     assert r.status_code == 405 and "POST" in r.headers["allow"] and r.json()["error"]
+
+
+def test_numbers_are_json_numbers(app: FastAPI, live_tokens: list[str]) -> None:
+    """Pydantic's lax mode took "0", true and false where the schema says integer or
+    number (a client_ms of false was stored as 0.0), and 1 for true; now they are refused,
+    while 0.0 stays an integer as in JSON Schema."""
+    client = TestClient(app)
+    base = {"event_id": "typecheck1", "step_index": 0, "type": "continue", "payload": {}}
+    for field, value in (("step_index", "0"), ("step_index", True), ("client_ms", False)):
+        r = client.post("/api/event", json={**base, field: value})
+        assert r.status_code == 422 and field in r.json()["detail"], (field, value, r.text)
+    consent = {"adult": 1, "read": True, "agree": True}
+    r = client.post("/api/event", json={**base, "type": "consent", "payload": consent})
+    assert r.status_code == 422 and "adult" in r.json()["detail"]
+    r = client.post("/api/event", json={**base, "step_index": 0.0})
+    assert r.status_code == 401  # well-formed: refused only for the missing session
+    r = client.post("/api/client-report", json={"report_id": "typecheck2", "path": "/",
+                                                 "http_status": 500, "client_ms": False})
+    assert r.status_code == 422 and "client_ms" in r.json()["detail"]
+    token = live_tokens[KINDS.index("survey")]
+    step = client.get("/api/state", headers={"X-Session-Token": token}).json()["step_index"]
+    r = client.post("/api/event", headers={"X-Session-Token": token}, json={
+        "event_id": "typecheck3", "step_index": step, "type": "likert",
+        "payload": {"informativeness": "3", "mental_effort": 2}})
+    assert r.status_code == 422 and "informativeness" in r.json()["detail"]
+
+
+def test_schema_states_which_comments_are_refused(app: FastAPI) -> None:
+    """Comments with control characters were refused though the schema allowed any string."""
+    likert = app.openapi()["components"]["schemas"]["Likert"]["properties"]["comment"]
+    assert not re.match(likert["pattern"], "a\x01b") and re.match(likert["pattern"], "a\tb\nc")

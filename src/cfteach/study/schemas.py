@@ -8,6 +8,7 @@ from typing import Annotated, Literal, Union
 from pydantic import (
     AfterValidator,
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     StringConstraints,
@@ -47,13 +48,13 @@ def _text(s: str) -> str:
 # Prolific ids: letters, digits, '_' and '-', or an unfilled placeholder such as
 # {{%PROLIFIC_PID%}} (a researcher's preview). The pattern is in the OpenAPI schema too,
 # so a client (or a fuzzer) can tell a valid id from the schema alone.
-ID_PATTERN = r"^(?:[A-Za-z0-9_-]*|\{\{?%.*%\}?\})$"
+ID_PATTERN = r"^(?:[A-Za-z0-9_-]*|\{\{?%[^\x00-\x1f\x7f-\x9f]*%\}?\})$"
 _ID_RE = re.compile(ID_PATTERN)
 
 
 def _prolific_id(value: str, info: ValidationInfo) -> str:
     if not _ID_RE.match(value):
-        raise PydanticCustomError("bad_id", "{name} may contain only letters, digits, '_' "
+        raise PydanticCustomError("bad_parameter", "{name} may contain only letters, digits, '_' "
                                   "and '-'", {"name": (info.field_name or "id").upper()})
     return value
 
@@ -62,14 +63,30 @@ TOKEN_PATTERN = r"^[A-Za-z0-9_-]{43}$"  # what secrets.token_urlsafe(32) gives
 IdStr = Annotated[str, StringConstraints(max_length=64), AfterValidator(_single_line),
                   AfterValidator(_prolific_id), Field(json_schema_extra={"pattern": ID_PATTERN})]
 TokenStr = Annotated[str, StringConstraints(pattern=TOKEN_PATTERN)]
-Comment = Annotated[str, StringConstraints(max_length=2000), AfterValidator(_text)]
-LongComment = Annotated[str, StringConstraints(max_length=4000), AfterValidator(_text)]
+# The same rule in the OpenAPI schema (the validator gives the clearer message).
+_TEXT_SCHEMA = Field(json_schema_extra={"pattern": r"^[^\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f]*$"})
+Comment = Annotated[str, StringConstraints(max_length=2000), AfterValidator(_text),
+                    _TEXT_SCHEMA]
+LongComment = Annotated[str, StringConstraints(max_length=4000), AfterValidator(_text),
+                        _TEXT_SCHEMA]
 Action = Literal["up", "down", "left", "right", "pickup", "dropoff"]
-Likert5 = Annotated[int, Field(ge=1, le=5)]
+
+
+def _integral(value: object) -> object:
+    """2.0 is an integer in JSON Schema (strict pydantic would refuse it): pass it as 2."""
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
+Int = BeforeValidator(_integral)
+Likert5 = Annotated[int, Field(ge=1, le=5), Int]
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    # Strict types, as JSON Schema has them: "2" and true are not integers, false is not a
+    # number, 1 is not true (lax pydantic took all of these; found by the fuzzer).
+    model_config = ConfigDict(extra="forbid", strict=True)
 
 
 class SessionRequest(Strict):
@@ -83,7 +100,7 @@ class SessionRequest(Strict):
 class EventRequest(Strict):
     event_id: Annotated[str, StringConstraints(min_length=8, max_length=64,
                                                pattern=r"^[A-Za-z0-9_-]+$")]
-    step_index: Annotated[int, Field(ge=0, le=10_000)]
+    step_index: Annotated[int, Field(ge=0, le=10_000), Int]
     type: Annotated[str, StringConstraints(max_length=32, pattern=r"^[a-z_]+$")]
     payload: dict = Field(default_factory=dict)
     client_ms: Annotated[float, Field(ge=0, le=1e15)] | None = None
@@ -95,7 +112,7 @@ class ClientReport(Strict):
     report_id: Annotated[str, StringConstraints(min_length=8, max_length=64,
                                                 pattern=r"^[A-Za-z0-9_-]+$")]
     path: Annotated[str, StringConstraints(max_length=100)]
-    http_status: Annotated[int, Field(ge=0, le=599)]
+    http_status: Annotated[int, Field(ge=0, le=599), Int]
     error: Annotated[str, StringConstraints(max_length=64)] = ""
     detail: Annotated[str, StringConstraints(max_length=2000)] = ""
     event: dict | None = None  # the refused event as sent (kept even if it was malformed)
@@ -106,25 +123,35 @@ class Empty(Strict):
     pass
 
 
+def _true(value: object) -> object:
+    """Only JSON's true (pydantic's Literal[True] also takes 1 and 1.0, even when strict)."""
+    if value is not True:
+        raise PydanticCustomError("must_be_true", "Input should be true")
+    return value
+
+
+Checked = Annotated[Literal[True], BeforeValidator(_true)]
+
+
 class Consent(Strict):
-    adult: Literal[True]
-    read: Literal[True]
-    agree: Literal[True]
+    adult: Checked
+    read: Checked
+    agree: Checked
 
 
 class PracticeAttempt(Strict):
     actions: Annotated[list[Action], Field(max_length=300)]
-    time_ms: Annotated[int, Field(ge=0, le=86_400_000)]
+    time_ms: Annotated[int, Field(ge=0, le=86_400_000), Int]
 
 
 class DemoPlayStart(Strict):
-    demo_index: Annotated[int, Field(ge=0, le=100)]
+    demo_index: Annotated[int, Field(ge=0, le=100), Int]
 
 
 class DemoPlayEnd(Strict):
-    demo_index: Annotated[int, Field(ge=0, le=100)]
+    demo_index: Annotated[int, Field(ge=0, le=100), Int]
     completed: bool
-    watch_ms: Annotated[int, Field(ge=0, le=86_400_000)]
+    watch_ms: Annotated[int, Field(ge=0, le=86_400_000), Int]
 
 
 class Likert(Strict):
@@ -135,13 +162,13 @@ class Likert(Strict):
 
 class TestAnswer(Strict):
     actions: Annotated[list[Action], Field(max_length=500)]
-    time_ms: Annotated[int, Field(ge=0, le=86_400_000)]
+    time_ms: Annotated[int, Field(ge=0, le=86_400_000), Int]
     confidence: Likert5
-    resets: Annotated[int, Field(ge=0, le=10_000)] = 0
+    resets: Annotated[int, Field(ge=0, le=10_000), Int] = 0
 
 
 class Demographics(Strict):
-    age: Annotated[int, Field(ge=18, le=120)]
+    age: Annotated[int, Field(ge=18, le=120), Int]
     gender: Literal[tuple(GENDERS)]  # type: ignore[valid-type]
     education: Literal[tuple(EDUCATION)] | None = None  # type: ignore[valid-type]
     comments: LongComment = ""

@@ -94,7 +94,10 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     async def _bad_request(_req: Request, e: RequestValidationError) -> JSONResponse:
         err = e.errors()[0] if e.errors() else {"loc": (), "msg": "invalid request"}
         loc = ".".join(str(x) for x in err.get("loc", ()))
-        return _err(422, "bad_request", f"{loc}: {err.get('msg')}")
+        # A malformed Prolific id keeps its own code: the page tells the participant that
+        # the study link is incomplete.
+        code = "bad_parameter" if err.get("type") == "bad_parameter" else "bad_request"
+        return _err(422, code, f"{loc}: {err.get('msg')}")
 
     @app.get("/favicon.ico", status_code=204, response_class=Response)
     def favicon() -> Response:
