@@ -1,4 +1,7 @@
-"""Fuzz the study's JSON API from its own OpenAPI schema (Schemathesis, in process, SQLite).
+"""Fuzz the study's JSON API from its own OpenAPI schema (Schemathesis, in process).
+
+Runs on a temporary SQLite toy study, and on PostgreSQL too where `CFTEACH_TEST_POSTGRES_URL`
+is set (`postgres` marker).
 
 Every operation gets schema-valid and schema-invalid requests, with no session, with a
 made-up one and with live sessions standing on every kind of page. Each response must not be
@@ -49,11 +52,18 @@ OPERATIONS = [("POST", "/api/session"), ("GET", "/api/state"), ("POST", "/api/ev
               ("GET", "/researcher"), ("GET", "/"), ("GET", "/favicon.ico")]
 
 
-@pytest.fixture(scope="module")
-def app(toy_study: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[FastAPI]:
-    db = tmp_path_factory.mktemp("fuzz") / "study.db"
+@pytest.fixture(scope="module",
+                params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)])
+def app(request: pytest.FixtureRequest, toy_study: Path,
+        tmp_path_factory: pytest.TempPathFactory) -> Iterator[FastAPI]:
+    """The server on a fresh SQLite file, and on PostgreSQL where it is available (NUL in a
+    text column fails only there)."""
+    if request.param == "sqlite":
+        url = f"sqlite:///{tmp_path_factory.mktemp('fuzz') / 'study.db'}"
+    else:
+        url = test_study_support.fresh_postgres()
     # Rate limits off: the fuzzer sends hundreds of requests from one address.
-    app = create_app(toy_study, f"sqlite:///{db}", researcher_token=RESEARCHER, seed=3,
+    app = create_app(toy_study, url, researcher_token=RESEARCHER, seed=3,
                      sessions_per_minute=0, events_per_minute=0, auth_failures_per_minute=0,
                      reports_per_minute=0)
     yield app
@@ -226,3 +236,16 @@ def test_schema_states_which_comments_are_refused(app: FastAPI) -> None:
     """Comments with control characters were refused though the schema allowed any string."""
     likert = app.openapi()["components"]["schemas"]["Likert"]["properties"]["comment"]
     assert not re.match(likert["pattern"], "a\x01b") and re.match(likert["pattern"], "a\tb\nc")
+
+
+def test_control_characters_in_a_client_report_are_refused(app: FastAPI) -> None:
+    """A NUL in a report's detail was a 500 on PostgreSQL (text columns cannot hold it)."""
+    client = TestClient(app, raise_server_exceptions=False)
+    for field in ("path", "error", "detail"):
+        report = {"report_id": f"nul-{field}-1", "path": "/api/event", "http_status": 413,
+                  field: "a\x00b"}
+        r = client.post("/api/client-report", json=report)
+        assert r.status_code == 422 and field in r.json()["detail"], (field, r.text)
+    r = client.post("/api/client-report", json={"report_id": "nul-none-1", "path": "/api/event",
+                                                 "http_status": 413, "detail": "two\nlines"})
+    assert r.status_code == 200

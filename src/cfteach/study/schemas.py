@@ -69,6 +69,11 @@ Comment = Annotated[str, StringConstraints(max_length=2000), AfterValidator(_tex
                     _TEXT_SCHEMA]
 LongComment = Annotated[str, StringConstraints(max_length=4000), AfterValidator(_text),
                         _TEXT_SCHEMA]
+_LINE_SCHEMA = Field(json_schema_extra={"pattern": r"^[^\x00-\x1f\x7f-\x9f]*$"})
+Path100 = Annotated[str, StringConstraints(max_length=100), AfterValidator(_single_line),
+                    _LINE_SCHEMA]
+Code64 = Annotated[str, StringConstraints(max_length=64), AfterValidator(_single_line),
+                   _LINE_SCHEMA]
 Action = Literal["up", "down", "left", "right", "pickup", "dropoff"]
 
 
@@ -111,10 +116,11 @@ class ClientReport(Strict):
 
     report_id: Annotated[str, StringConstraints(min_length=8, max_length=64,
                                                 pattern=r"^[A-Za-z0-9_-]+$")]
-    path: Annotated[str, StringConstraints(max_length=100)]
+    # text columns: no control characters (PostgreSQL cannot store NUL: a 500 before)
+    path: Path100
     http_status: Annotated[int, Field(ge=0, le=599), Int]
-    error: Annotated[str, StringConstraints(max_length=64)] = ""
-    detail: Annotated[str, StringConstraints(max_length=2000)] = ""
+    error: Code64 = ""
+    detail: Comment = ""
     event: dict | None = None  # the refused event as sent (kept even if it was malformed)
     client_ms: Annotated[float, Field(ge=0, le=1e15)] | None = None
 
