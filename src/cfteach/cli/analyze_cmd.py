@@ -206,7 +206,7 @@ def analyze(
         )
         results = run(export_dir, out, cfg, note=note)
     except (ExportError, ValueError) as exc:
-        typer.echo(f"error: {exc}", err=True)
+        typer.echo(f"Error: {exc}", err=True)
         raise typer.Exit(code=2) from exc
     p = results["participants"]
     rm = results["h1"]["rm_anova"]

@@ -47,15 +47,20 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """List domains: features, weights, number of instances and of demonstrations."""
         from cfteach import domains
+        from cfteach.cli._common import fail
+        from cfteach.domains.check import errors_of, static_findings
 
         names = paths or domains.builtin_names()
         rows = []
         for name in names:
             try:
-                rows.append(_summary(domains.load(name)))
+                dom = domains.load(name)
             except ValueError as exc:  # DomainFileError is a ValueError
-                typer.echo(f"Error: {exc}", err=True)
-                raise typer.Exit(2) from None
+                fail(str(exc))
+            errors = errors_of(static_findings(dom))
+            if errors:
+                fail(errors[0].message + " (`cfteach check` runs every check)")
+            rows.append(_summary(dom))
         if as_json:
             typer.echo(json.dumps(rows, indent=2))
             return

@@ -65,7 +65,7 @@ def register(app: typer.Typer) -> None:
                 human_models=human_models, seed=seed, backend=backend, n_workers=workers,
                 scheduler=scheduler, chunk_learners=chunk, progress=sys.stderr.isatty())
         except (ValueError, FileNotFoundError, ImportError, ConnectionError) as err:
-            typer.echo(f"error: {err}", err=True)
+            typer.echo(f"Error: {err}", err=True)
             raise typer.Exit(2) from None
         summ = result.write(out)
         _print_summary(summ)
