@@ -186,11 +186,13 @@ def belief_cmd(
     else:
         _fail(f"{file}: has neither 'final_belief' nor 'belief'")
     try:
+        from cfteach.report.build import feature_labels
+
         fig = bel.plot_belief_sphere(
             region,
             bec=bec,
             w_true=data["weights"],
-            feature_names=data["feature_names"],
+            feature_names=feature_labels(str(data["domain"]), data["feature_names"]),
             title=title,
         )
     except (ValueError, KeyError, TypeError) as exc:
