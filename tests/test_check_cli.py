@@ -65,3 +65,14 @@ def test_no_traceback_reaches_the_user_from_the_console_script(tmp_path: Path) -
     assert res.stderr.strip().splitlines() == [
         "Error: RuntimeError: boom (an unexpected failure; set CFTEACH_DEBUG=1 to see the "
         "traceback and please report it)"]
+
+
+def test_domains_lists_a_big_domain_with_an_estimate() -> None:
+    import json
+
+    res = CliRunner().invoke(app, ["domains", "--json", "random:30x30:f3:n512:s0", "tiles"])
+    assert res.exit_code == 0, res.output
+    big, tiles = json.loads(res.stdout)
+    assert big["instances"] == 512 and big["demonstrations_exact"] is False
+    assert 100_000 < big["demonstrations"] < 1_000_000
+    assert (tiles["demonstrations"], tiles["demonstrations_exact"]) == (12288, True)

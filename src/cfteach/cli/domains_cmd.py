@@ -12,6 +12,10 @@ import typer
 
 
 def _summary(dom: Any) -> dict[str, Any]:
+    from cfteach.domains.size import estimate_size
+
+    est = estimate_size(dom)  # exact when cheap to count, else from a sample (no minute-long
+    # enumeration of every instance of a big domain just to list it)
     return {
         "name": dom.name,
         "title": dom.title,
@@ -27,8 +31,9 @@ def _summary(dom: Any) -> dict[str, Any]:
         "prior": dom.prior.tolist(),
         "posterior": dom.posterior.tolist(),
         "n_bits": dom.n_bits,
-        "instances": len(dom.instances()),
-        "demonstrations": dom.n_demonstrations(),
+        "instances": est.instances,
+        "demonstrations": est.demonstrations,
+        "demonstrations_exact": est.exact,
     }
 
 
@@ -72,7 +77,7 @@ def register(app: typer.Typer) -> None:
                                                        strict=True)),
                 "[" + ", ".join(f"{w:.3f}" for w in r["weights"]) + "]",
                 str(r["instances"]),
-                str(r["demonstrations"]),
+                ("" if r["demonstrations_exact"] else "~") + str(r["demonstrations"]),
             )
             for r in rows
         ]
