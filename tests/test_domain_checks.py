@@ -111,3 +111,8 @@ def test_a_curriculum_whose_belief_lost_w_star_is_refused(monkeypatch) -> None:
     monkeypatch.setattr("cfteach.teaching.counterfactual.tightened", wrong, raising=False)
     with pytest.raises(BeliefError, match="does not contain w"):
         teach("skateboard", "baseline")
+
+
+def test_a_random_domain_loads_by_the_name_its_json_files_carry() -> None:
+    dom = domains.load("random:5x5:f3:n4:s0")
+    assert domains.load(dom.name) is dom  # "random-5x5-f3-n4-s0"

@@ -13,6 +13,7 @@ File format: docs/domains.md.
 
 from __future__ import annotations
 
+import re
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -65,12 +66,16 @@ def _did_you_mean(text: str) -> str:
 
 def load(path_or_name: str | Path) -> Domain:
     """Load a built-in domain by name (cached, so planning caches are shared), a TOML file,
-    or a random domain written ``random:WxH:fF:nN:sS`` (cached too)."""
+    or a random domain written ``random:WxH:fF:nN:sS`` or by its name
+    ``random-WxH-fF-nN-sS`` (as its JSON files carry it; cached too)."""
     if isinstance(path_or_name, str) and path_or_name in builtin_names():
         return _load_builtin(path_or_name)
     if isinstance(path_or_name, str) and path_or_name.startswith("random:"):
         return _load_random(path_or_name)
     path = Path(path_or_name)
+    named = re.fullmatch(r"random-(\d+)x(\d+)-f(\d+)-n(\d+)-s(\d+)", str(path_or_name))
+    if named and not path.exists():  # the name a random domain's JSON files carry
+        return _load_random("random:{}x{}:f{}:n{}:s{}".format(*named.groups()))
     if path.is_dir():
         raise ValueError(f"{str(path_or_name)!r} is a directory, not a domain file")
     if not path.exists():
