@@ -83,6 +83,8 @@ CASES = [
     (["serve", "--study", "{dir}/nostudy"], "no study at"),
     (["simulate", "-d", "delivry", "-o", "{dir}/s"], "did you mean 'delivery'"),
     (["analyze", "{dir}/missing"], "does not exist"),
+    (["analyze", "--synthetic", "10", "-o", "{file}"], "is a file, not a directory"),
+    (["simulate", "-d", "skateboard", "-o", "{file}"], "is a file, not a directory"),
     (["no-such-command"], "No such command"),
 ]
 

@@ -157,6 +157,9 @@ def analyze(
         raise typer.BadParameter("give either EXPORT_DIR or --synthetic N (exactly one)")
     if export_only and synthetic is None:
         raise typer.BadParameter("--export-only needs --synthetic")
+    from cfteach.cli._common import check_out_dir
+
+    check_out_dir(out)  # before the work
     from cfteach.analysis import (
         AnalysisConfig,
         ExclusionConfig,

@@ -55,8 +55,10 @@ def register(app: typer.Typer) -> None:
         correlation, as JSON, CSV and plots."""
         import sys
 
+        from cfteach.cli._common import check_out_dir
         from cfteach.simulate.sweep import run_sweep
 
+        check_out_dir(out)  # before the work: a bad --out must not cost the whole sweep
         try:
             result = run_sweep(
                 split_list(domains) or ["delivery", "tiles", "skateboard"],
