@@ -85,6 +85,9 @@ CASES = [
     (["analyze", "{dir}/missing"], "does not exist"),
     (["analyze", "--synthetic", "10", "-o", "{file}"], "is a file, not a directory"),
     (["simulate", "-d", "skateboard", "-o", "{file}"], "is a file, not a directory"),
+    (["simulate", "-d", "{walled}", "-o", "{dir}/s"], "cannot be reached"),
+    (["study", "init", "--domains", "delivery,{walled}", "--out", "{dir}/st"],
+     "cannot be reached"),
     (["no-such-command"], "No such command"),
 ]
 

@@ -49,16 +49,20 @@ def register(app: typer.Typer) -> None:
         chunk: int = typer.Option(16, "--chunk", min=1,
                                   help="Learners per work chunk (results depend on it)."),
         out: Path = typer.Option(Path("out/simulate"), "--out", "-o", help="Output folder."),
+        force: bool = typer.Option(False, "--force", help="Go on even when a domain's size "
+                                   "estimate exceeds the free memory."),
     ) -> None:
         """Teach simulated learners every condition's curriculum and test them: proportion
         optimal by difficulty x condition (95% CIs) and the H1 overlap-correctness
         correlation, as JSON, CSV and plots."""
         import sys
 
-        from cfteach.cli._common import check_out_dir
+        from cfteach.cli._common import check_out_dir, load_domain
         from cfteach.simulate.sweep import run_sweep
 
         check_out_dir(out)  # before the work: a bad --out must not cost the whole sweep
+        for name in split_list(domains) or []:  # the domain checks and the size guard
+            load_domain(name, force=force)
         try:
             result = run_sweep(
                 split_list(domains) or ["delivery", "tiles", "skateboard"],

@@ -71,7 +71,8 @@ def init(
     consent: Path | None = typer.Option(None, "--consent", help="HTML file with your consent "
                                         "text (no scripts), shown above the check boxes."),
     force: bool = typer.Option(False, "--force", help="Replace study.json even when the "
-                               "folder's study.db holds sessions."),
+                               "folder's study.db holds sessions; teach a domain whose size "
+                               "estimate exceeds the free memory."),
 ) -> None:
     """Write a study folder (study.json) from curricula and test sets."""
     from cfteach.cli._common import check_out_dir, fail, study_sessions
@@ -85,6 +86,11 @@ def init(
              "folder, or pass --force")
 
     names = [d.strip() for d in domains.split(",") if d.strip()]
+    if not (toy or preview or source is not None):  # teaching here: check domains first
+        from cfteach.cli._common import load_domain
+
+        for name in names:
+            load_domain(name, force=force)
     if toy:
         sources = toy_sources()
     elif preview:
