@@ -116,3 +116,20 @@ def test_a_curriculum_whose_belief_lost_w_star_is_refused(monkeypatch) -> None:
 def test_a_random_domain_loads_by_the_name_its_json_files_carry() -> None:
     dom = domains.load("random:5x5:f3:n4:s0")
     assert domains.load(dom.name) is dom  # "random-5x5-f3-n4-s0"
+
+
+def test_states_that_cannot_reach_the_goal_are_named() -> None:
+    from dataclasses import replace
+
+    from cfteach.domains.check import planning_findings
+    from cfteach.mdp import compile_domain, value_iteration
+
+    dom = from_dict(corridor())
+    batch = compile_domain(dom)
+    vals = value_iteration(batch, np.asarray(dom.weights)[None])
+    assert planning_findings(dom, batch, vals) == []
+    V = vals.V.copy()
+    V[2, 0, [3, 5]] = -np.inf  # as if two states of instance 2 were cut off from the goal
+    found = planning_findings(dom, batch, replace(vals, V=V))
+    assert [f.code for f in found] == ["dead_end"]
+    assert "env code [1, 0]" in found[0].message and "from 2 of" in found[0].message

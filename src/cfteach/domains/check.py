@@ -88,7 +88,8 @@ def static_findings(dom: Domain) -> list[Finding]:
     return out
 
 
-def _cell(inst: Any, state: tuple[int, ...]) -> list[int]:
+def _cell(state: tuple[int, ...]) -> list[int]:
+    """The agent's cell of a state."""
     return [int(state[0]), int(state[1])]
 
 
@@ -116,9 +117,9 @@ def planning_findings(dom: Domain, batch: Any, values: Any) -> list[Finding]:
         if dead[0] == 0:  # the initial state is state 0
             out.append(Finding("error", "unreachable_goal", (
                 f"{tag}: the goal ({what} at {goal}) cannot be reached from the start "
-                f"{_cell(inst, batch.states[e][0])} (walls or blocked cells cut it off)")))
+                f"{_cell(batch.states[e][0])} (walls or blocked cells cut it off)")))
         else:
-            eg = _cell(inst, batch.states[e][int(dead[0])])
+            eg = _cell(batch.states[e][int(dead[0])])
             out.append(Finding("error", "dead_end", (
                 f"{tag}: from {dead.size} of {n} reachable states (e.g. agent at {eg}) the "
                 f"goal ({what} at {goal}) can no longer be reached")))
