@@ -47,7 +47,7 @@ def test_check_skips_planning_of_a_domain_too_big_for_memory(monkeypatch) -> Non
     assert res.exit_code == 0, res.output
     out = " ".join(res.stdout.split())
     assert "instances: 512" in out and "about" in out
-    assert "shrink fewer variant bits (9 bits = 512 instances" in out
+    assert "make the domain smaller: fewer variant bits (9 bits = 512 instances" in out
     assert "planning checks skipped" in out
 
 

@@ -143,4 +143,4 @@ def shrink_advice(dom: Domain, est: SizeEstimate) -> str:
     tips.append(f"a smaller grid ({dom.width} x {dom.height})")
     if dom.spec.cargo is not None:
         tips.append("no cargo (it multiplies the states by the free cells)")
-    return "shrink " + ", ".join(tips)
+    return "make the domain smaller: " + ", ".join(tips)
