@@ -130,7 +130,8 @@ def test_too_big_for_memory_is_refused_unless_forced(monkeypatch, tmp_path: Path
     monkeypatch.setattr("cfteach.domains.size.available_memory", lambda: 1e6)
     res = CliRunner().invoke(app, ["teach", "skateboard", "-o", str(tmp_path / "c.json")])
     assert res.exit_code == 2
-    assert "of memory" in res.stderr and "make the domain smaller" in res.stderr and "--force" in res.stderr
+    assert "of memory" in res.stderr and "--force" in res.stderr
+    assert "make the domain smaller" in res.stderr
     assert not (tmp_path / "c.json").exists()
     res = CliRunner().invoke(app, ["teach", "skateboard", "--force", "--max-demos", "1",
                                    "-o", str(tmp_path / "c.json")])
