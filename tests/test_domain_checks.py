@@ -99,16 +99,17 @@ def test_misspelt_domain_names_get_a_suggestion(tmp_path: Path) -> None:
 
 
 def test_a_curriculum_whose_belief_lost_w_star_is_refused(monkeypatch) -> None:
-    from cfteach.teaching import common
+    # Import the users first: importing one while common.tightened is patched would bind
+    # (and, on undo, restore) the wrong function.
+    from cfteach.teaching import baseline, common, counterfactual
 
     real = common.tightened
 
     def wrong(belief, rows):  # a teaching bug: add the flipped constraints
         return real(belief, -np.asarray(rows))
 
-    monkeypatch.setattr(common, "tightened", wrong)
-    monkeypatch.setattr("cfteach.teaching.baseline.tightened", wrong, raising=False)
-    monkeypatch.setattr("cfteach.teaching.counterfactual.tightened", wrong, raising=False)
+    for module in (common, baseline, counterfactual):
+        monkeypatch.setattr(module, "tightened", wrong)
     with pytest.raises(BeliefError, match="does not contain w"):
         teach("skateboard", "baseline")
 
