@@ -1,14 +1,15 @@
 """Regenerate every picture in docs/images, and the README's table of the report's numbers,
 from the current code, in one run (so pictures and numbers always agree).
 
-    .venv/bin/python scripts/docs_images.py [--only report|sphere|study]
+    .venv/bin/python scripts/docs_images.py [--only report|sphere|study|closed-loop]
 
 Steps: `cfteach reproduce` (profile default, seed 0) into a temporary folder; the report's
 first screen and the delivery curricula, photographed in headless Chromium (1280 x 800);
 a belief sphere (`cfteach render belief delivery/proposed.json --demo 1`); the study pages
 (`cfteach study init --from` that output, then the study's own screenshot walk); the
 README's numbers between its `report-numbers` markers (tests/test_readme_numbers.py checks
-them against a fresh run).
+them against a fresh run); the closed-loop teacher's particle beliefs
+(scripts/closed-loop-figures.py, which can also draw them alone into any folder).
 """
 
 from __future__ import annotations
@@ -92,11 +93,22 @@ def write_readme_numbers(results: Path) -> None:
     print("updated README.md's report numbers")
 
 
+def closed_loop_shots() -> None:
+    import runpy
+
+    drawn = runpy.run_path(str(ROOT / "scripts" / "closed-loop-figures.py"))["main"](IMAGES)
+    print("wrote", drawn.name)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", choices=("report", "sphere", "study"))
+    parser.add_argument("--only", choices=("report", "sphere", "study", "closed-loop"))
     args = parser.parse_args()
     IMAGES.mkdir(parents=True, exist_ok=True)
+    if args.only in (None, "closed-loop"):
+        closed_loop_shots()
+    if args.only == "closed-loop":
+        return
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
         results = tmp / "reproduce"
