@@ -157,6 +157,9 @@ def analyze(
         raise typer.BadParameter("give either EXPORT_DIR or --synthetic N (exactly one)")
     if export_only and synthetic is None:
         raise typer.BadParameter("--export-only needs --synthetic")
+    from cfteach.cli._common import check_out_dir
+
+    check_out_dir(out)  # before the work
     from cfteach.analysis import (
         AnalysisConfig,
         ExclusionConfig,
@@ -206,7 +209,7 @@ def analyze(
         )
         results = run(export_dir, out, cfg, note=note)
     except (ExportError, ValueError) as exc:
-        typer.echo(f"error: {exc}", err=True)
+        typer.echo(f"Error: {exc}", err=True)
         raise typer.Exit(code=2) from exc
     p = results["participants"]
     rm = results["h1"]["rm_anova"]
