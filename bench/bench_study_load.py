@@ -91,10 +91,10 @@ def main() -> int:
     base = f"http://127.0.0.1:{port}"
     try:
         _wait(base, server, tmp / "server.log")
-        cpu0, load0 = _cpu_seconds(server.pid), os.getloadavg()
-        latencies, wall = _run(base, args)
-        cpu = _cpu_seconds(server.pid) - cpu0
-        load = (load0, os.getloadavg())
+        cpu0, load0, mine0 = _cpu_seconds(server.pid), os.getloadavg(), time.process_time()
+        latencies, wall, loads = _run(base, args)
+        cpu = (_cpu_seconds(server.pid) - cpu0, time.process_time() - mine0)
+        load = (load0[0], float(np.mean(loads)), max(loads))
     finally:
         server.terminate()
         server.wait(timeout=30)
@@ -135,8 +135,10 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _run(base: str, args: argparse.Namespace) -> tuple[dict[str, list[float]], float]:
-    """Run the participants until the deadline; returns latencies (ms) by request name."""
+def _run(base: str, args: argparse.Namespace) -> tuple[dict[str, list[float]], float,
+                                                      list[float]]:
+    """Run the participants until the deadline; returns latencies (ms) by request name, the
+    wall time and the machine's 1-minute load average sampled along the way."""
     latencies: dict[str, list[float]] = defaultdict(list)
 
     def on_request(name: str, response_time: float, **_kw: Any) -> None:
@@ -152,11 +154,14 @@ def _run(base: str, args: argparse.Namespace) -> tuple[dict[str, list[float]], f
     runner.start(args.participants, spawn_rate=args.arrivals)
     runner.spawning_greenlet.join()  # all participants have arrived
     # Participants stop by themselves at the deadline, between two requests.
+    loads = [os.getloadavg()[0]]
     while runner.user_count and time.monotonic() < users.Plan.deadline + GRACE:
         gevent.sleep(0.5)
+        if time.monotonic() < users.Plan.deadline:
+            loads.append(os.getloadavg()[0])
     wall = time.monotonic() - t0
     runner.quit()  # kills only what is still waiting for an answer after the grace time
-    return latencies, wall
+    return latencies, wall, loads
 
 
 def _verify(db: str, tally: users.Tally) -> dict[str, Any]:
@@ -195,7 +200,8 @@ def _verify(db: str, tally: users.Tally) -> dict[str, Any]:
 
 
 def _report(args: argparse.Namespace, db: str, latencies: dict[str, list[float]],
-            wall: float, cpu: float, load: tuple, check: dict[str, Any]) -> None:
+            wall: float, cpu: tuple[float, float], load: tuple,
+            check: dict[str, Any]) -> None:
     tally = users.Plan.tally
     kind = db.split(":")[0].split("+")[0]
     every = np.concatenate([np.asarray(v) for v in latencies.values()] or [[np.nan]])
@@ -209,8 +215,10 @@ def _report(args: argparse.Namespace, db: str, latencies: dict[str, list[float]]
         ms = np.asarray(latencies[name])
         print(f"  {name:<18} n={ms.size:<6} p50 {np.percentile(ms, 50):6.1f} ms  "
               f"p99 {np.percentile(ms, 99):6.1f} ms  max {ms.max():7.1f} ms")
-    print(f"  server CPU {cpu:.0f} s ({100 * cpu / wall:.0f}% of one core); load average "
-          f"{load[0][0]:.1f} at start, {load[1][0]:.1f} at end (1 min, 2 cores)")
+    print(f"  CPU: server {cpu[0]:.0f} s ({100 * cpu[0] / wall:.0f}% of one core), these "
+          f"participants {cpu[1]:.0f} s ({100 * cpu[1] / wall:.0f}%); load average "
+          f"(1 min) {load[0]:.1f} at start, {load[1]:.1f} mean and {load[2]:.1f} max during "
+          f"the run ({os.cpu_count()} cores)")
     print(f"  database: {check['stored']} events stored, {check['completed']} sessions "
           f"completed; lost {check['lost']}, duplicated {check['duplicated']}, sessions "
           f"with seq gaps {check['gaps']}")
