@@ -1,0 +1,182 @@
+"""The live `closed_loop` condition: a `ClosedLoopTeacher` per participant and domain.
+
+The teacher's state is a pure function of (pool, settings, seed, responses), and the
+responses are the participant's stored `item_done` events. So nothing here is the only copy
+of anything: the pools are derived from the study file (rebuilt at server start, cached per
+server), and a teacher is cached only as a shortcut, found by the responses it has seen
+(its event count and content). After a restart, or when the cache does not match the
+database, the teacher is replayed from the events (`ClosedLoopTeacher.replay`).
+
+While a participant watches a demonstration or feedback (whose response is always ``{}``),
+a background thread decides the item after it, at most one task per session at a time.
+"""
+
+from __future__ import annotations
+
+import copy
+import threading
+import zlib
+from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+from cfteach.closedloop import ClosedLoopTeacher, LessonPool, TeacherSettings, build_pool
+from cfteach.closedloop.teacher import Item
+
+from .games import build_game
+
+#: Teachers kept per server (each a few hundred kB); older ones are replayed when needed.
+MAX_TEACHERS = 512
+
+
+def teacher_seed(session_seed: int, domain: str) -> int:
+    """The teacher's seed for one participant and domain (stable across restarts)."""
+    return zlib.crc32(f"{session_seed}:{domain}".encode()) & 0x7FFFFFFF
+
+
+def settings_of(cell: dict) -> TeacherSettings:
+    s = dict(cell["settings"])
+    s["zpd_band"] = tuple(s["zpd_band"])
+    return TeacherSettings(**s)
+
+
+def pool_from_cell(cell: dict) -> LessonPool:
+    """Rebuild a domain's lesson pool from its `closed_loop` cell in study.json."""
+    p = cell["pool"]
+    return build_pool(cell["domain"], profile=p["profile"], human_models=p["human_models"],
+                      seed=p["seed"], held_out=list(cell["held_out"]))
+
+
+def responses_of(payloads: list[dict]) -> list[dict[str, Any]]:
+    """Teacher responses from stored `item_done` payloads, in order."""
+    return [{"actions": list(p["actions"])} if p.get("actions") is not None else {}
+            for p in payloads]
+
+
+class LiveTeaching:
+    """Pools, games and (cached) teachers of one server."""
+
+    def __init__(self, workers: int = 2) -> None:
+        self._pools: dict[tuple[str, str], LessonPool] = {}
+        self._games: dict[tuple[str, str, int], dict] = {}
+        self._teachers: OrderedDict[tuple, list[ClosedLoopTeacher]] = OrderedDict()
+        self._locks: dict[tuple, threading.Lock] = {}
+        self._lock = threading.Lock()
+        self._pool_lock = threading.Lock()
+        self._busy: set[tuple] = set()
+        self._executor = ThreadPoolExecutor(max_workers=workers,
+                                            thread_name_prefix="closed-loop")
+
+    def close(self) -> None:
+        self._executor.shutdown(wait=False, cancel_futures=True)
+
+    # -- derived data ----------------------------------------------------------------------
+    def pool(self, study: dict, domain: str) -> LessonPool:
+        key = (study["version"], domain)
+        with self._pool_lock:
+            if key not in self._pools:
+                self._pools[key] = pool_from_cell(study["closed_loop"][domain])
+            return self._pools[key]
+
+    def warm(self, study: dict) -> None:
+        """Build every closed-loop pool of a study now (at server start)."""
+        for domain in study.get("closed_loop", {}):
+            self.pool(study, domain)
+
+    def game(self, study: dict, domain: str, demo: int) -> dict:
+        """The playable table of a test started at pool demo `demo` (cached)."""
+        key = (study["version"], domain, demo)
+        g = self._games.get(key)
+        if g is None:
+            ds = self.pool(study, domain).ds
+            inst = ds.instance(demo)
+            g = build_game(inst, ds.trajectory_states(demo)[0], tuple(ds.batch.actions))
+            with self._lock:
+                if len(self._games) >= 4096:
+                    self._games.pop(next(iter(self._games)))
+                self._games[key] = g
+        return g
+
+    # -- teachers --------------------------------------------------------------------------
+    def session_lock(self, session_pk: int, domain: str) -> threading.Lock:
+        with self._lock:
+            return self._locks.setdefault((session_pk, domain), threading.Lock())
+
+    def teacher(self, study: dict, session_pk: int, session_seed: int, domain: str,
+                responses: list[dict]) -> ClosedLoopTeacher:
+        """The teacher that has seen exactly `responses` (hold `session_lock` around its use).
+
+        A cached teacher whose responses are a prefix of these is brought up to date; any
+        other is ignored, and the session is replayed from the responses.
+        """
+        key = (session_pk, domain)
+        with self._lock:
+            cands = list(self._teachers.get(key, []))
+        best = None
+        for t in cands:
+            n = len(t.responses)
+            if n <= len(responses) and t.responses == responses[:n] and (
+                    best is None or n > len(best.responses)):
+                best = t
+        pool = self.pool(study, domain)
+        if best is None:
+            best = ClosedLoopTeacher.replay(pool, responses,
+                                            settings=settings_of(study["closed_loop"][domain]),
+                                            seed=teacher_seed(session_seed, domain))
+        else:
+            for r in responses[len(best.responses):]:
+                best.next()
+                best.observe(r)
+        self._remember(key, best)
+        return best
+
+    def _remember(self, key: tuple, t: ClosedLoopTeacher) -> None:
+        with self._lock:
+            kept = [x for x in self._teachers.pop(key, []) if x is not t][-1:]
+            self._teachers[key] = [*kept, t]
+            while len(self._teachers) > MAX_TEACHERS:
+                old, _ = self._teachers.popitem(last=False)
+                self._locks.pop(old, None)
+
+    def precompute(self, study: dict, session_pk: int, domain: str,
+                   t: ClosedLoopTeacher) -> bool:
+        """Decide, in the background, the item after `t`'s pending one when its response
+        is known in advance (a demonstration or feedback: ``{}``). At most one task per
+        session; returns whether one was started."""
+        item = t.next()
+        key = (session_pk, domain)
+        if item is None or item.kind == "test":
+            return False
+        with self._lock:
+            if key in self._busy:
+                return False
+            self._busy.add(key)
+        ahead = copy.deepcopy(t, {id(t.pool): t.pool})
+
+        def run() -> None:
+            try:
+                ahead.observe({})
+                ahead.next()
+                self._remember(key, ahead)
+            finally:
+                with self._lock:
+                    self._busy.discard(key)
+
+        self._executor.submit(run)
+        return True
+
+
+def item_summary(t: ClosedLoopTeacher, item: Item) -> dict:
+    """The belief summary stored with an item when it is chosen."""
+    return {"expected_area": float(t.belief.expected_area()),
+            "predicted_optimal": item.predicted_optimal,
+            "predicted_held_out": t.predicted_held_out()}
+
+
+def path_states(game: dict, actions: list[str]) -> list[dict]:
+    """The JSON states of a move list played in `game` from its start."""
+    s, out = 0, [game["states"][0]]
+    for a in actions:
+        s = game["next"][s][game["actions"].index(a)]
+        out.append(game["states"][s])
+    return out
