@@ -259,3 +259,56 @@ def test_item_checks_and_state_from_events(cl_study: Path, tmp_path: Path) -> No
     again["item"].pop("elapsed_ms", None)
     final["item"].pop("elapsed_ms", None)
     assert again == final and again["item"]["position"] == 2
+
+
+@pytest.mark.slow
+def test_kill_9_mid_session_lands_on_the_same_item(tmp_path: Path) -> None:
+    """`cfteach serve` killed with SIGKILL right after acknowledging an item (while the
+    next decision may be running in the background), then restarted: the participant is on
+    the same item, finishes, and nothing is lost or stored twice."""
+    import httpx
+    from sqlalchemy import func, select
+
+    from cfteach.study.db import make_engine
+    from cfteach.study.livesrv import serving_process
+    from cfteach.study.models import ClosedLoopItem, Event
+
+    study_dir = tmp_path / "study"
+    init_study(study_dir, preview_sources(["skateboard"]), demo_step_ms=10,
+               conditions=["closed_loop"], teacher=TEACHER)
+    db = f"sqlite:///{tmp_path / 'k.db'}"
+    with serving_process(study_dir, "--db", db) as (base, proc), \
+            httpx.Client(base_url=base, timeout=30) as client:
+        r = client.post("/api/session", json={"prolific_pid": "kill9aaaaaaaa",
+                                              "study_id": "S", "session_id": "K"})
+        token = r.json()["token"]
+        # consent .. domain intro (6 pages), then 3 items
+        got = run_participant(client, None, token=token, stop_after=9)
+        acked = got["state"]
+        assert acked["step"]["kind"] == "closed_loop"
+        proc.kill()  # SIGKILL: no shutdown of any kind
+        proc.wait()
+    with serving_process(study_dir, "--db", db) as (base, _), \
+            httpx.Client(base_url=base, timeout=30) as client:
+        again = client.get("/api/state", headers={"X-Session-Token": token}).json()
+        for s in (again, acked):
+            s["step"]["item"].pop("elapsed_ms", None)
+        assert again["step_index"] == acked["step_index"]
+        assert again["step"]["item"] == acked["step"]["item"]
+        assert again["step"]["item"]["position"] == 3
+        done = run_participant(client, None, token=token)
+        assert done["state"]["step"]["kind"] == "complete"
+    engine = make_engine(db)
+    with engine.connect() as conn:
+        n, lo, hi, ids = conn.execute(select(func.count(), func.min(Event.seq),
+                                             func.max(Event.seq),
+                                             func.count(Event.event_id.distinct()))).one()
+        positions = [p for (p,) in conn.execute(select(ClosedLoopItem.position)
+                                                .order_by(ClosedLoopItem.position))]
+        undone = conn.execute(select(func.count()).where(ClosedLoopItem.done_at.is_(None)))
+        undone = undone.scalar()
+        answered = conn.execute(select(func.count()).where(Event.type == "item_done")).scalar()
+    engine.dispose()
+    assert (lo, hi, ids) == (1, n, n)  # gap-free, in order, each event once
+    assert positions == list(range(len(positions))) and undone == 0
+    assert answered == len(positions)  # one answer per item, none lost, none twice
