@@ -564,7 +564,7 @@ const pages = {
       const run = () => {
         replayBtn.disabled = true;
         animate([mine, best], [it.answer, it.optimal], ["your answer", "Chip's best answer"],
-          ["Your answer", "Chip's best answer"], () => { replayBtn.disabled = false; next.disabled = false; });
+          [null, null], () => { replayBtn.disabled = false; next.disabled = false; });
       };
       replayBtn.addEventListener("click", run);
       app.replaceChildren(h("h1", { text: "Compare with Chip" }), head,
