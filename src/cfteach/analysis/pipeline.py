@@ -126,7 +126,9 @@ def analyze(
     disable = None if progress is None else not progress
     with tqdm(total=4, desc="analyze", unit="step", file=sys.stderr, disable=disable) as bar:
         bar.set_postfix_str("load")
-        export = load_export(export_dir)
+        from cfteach.analysis import closed_loop  # closed_loop participants: their own section
+        with closed_loop.paper_only(export_dir) as paper_dir:
+            export = load_export(paper_dir)
         bar.update()
         bar.set_postfix_str("statistics")
         results, frames = compute_results(export, cfg, str(export_dir), note)
@@ -141,11 +143,14 @@ def analyze(
         bar.update()
         bar.set_postfix_str("report")
         results["figures"] = {k: [f"figures/{n}" for n in v] for k, v in figures.items()}
+        if (cl := closed_loop.compare(export_dir)) is not None:
+            results["closed_loop"] = to_jsonable(cl)
         (out / "results.json").write_text(
             json.dumps(results, indent=2, allow_nan=False) + "\n", encoding="utf-8"
         )
         from cfteach.analysis.report import write_report
 
         write_report(results, figures, out)
+        closed_loop.add_to_report(results.get("closed_loop"), out)
         bar.update()
     return results
