@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
+import test_study_support
 from cfteach.cli import app as cli_app
 from cfteach.closedloop import ClosedLoopTeacher
 from cfteach.study import create_app, export_csv, load_study
@@ -22,6 +23,7 @@ from cfteach.study.live import pool_from_cell, settings_of
 from cli_runner import WideRunner
 
 TEACHER = {"n_particles": 300, "max_items": 10}
+db_url = test_study_support.db_url  # SQLite, and PostgreSQL when one is given
 
 
 @pytest.fixture(scope="module")
@@ -206,8 +208,9 @@ def test_closed_loop_session_items_and_export_replay(cl_study: Path, tmp_path: P
     assert parts[pid]["condition"] == "closed_loop" and parts[pid]["counterfactual"] == "1"
 
 
-def test_item_checks_and_state_from_events(cl_study: Path, tmp_path: Path) -> None:
-    app = create_app(cl_study, f"sqlite:///{tmp_path / 'c.db'}", seed=5)
+def test_item_checks_and_state_from_events(cl_study: Path, db_url: str) -> None:
+    """On SQLite and PostgreSQL."""
+    app = create_app(cl_study, db_url, seed=5)
     client, who = _closed_loop_client(app)
     with client:
         st = who.to_closed_loop()
@@ -312,3 +315,37 @@ def test_kill_9_mid_session_lands_on_the_same_item(tmp_path: Path) -> None:
     assert (lo, hi, ids) == (1, n, n)  # gap-free, in order, each event once
     assert positions == list(range(len(positions))) and undone == 0
     assert answered == len(positions)  # one answer per item, none lost, none twice
+
+
+def test_next_item_decided_in_background_while_a_demonstration_is_watched(
+        cl_study: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """While item k (a demonstration) is on screen the item after it is decided in the
+    background; answering k then needs no replay and no decision of its own."""
+    import time
+
+    from cfteach.closedloop import teacher as teacher_mod
+
+    app = create_app(cl_study, f"sqlite:///{tmp_path / 'b.db'}", seed=5)
+    client, who = _closed_loop_client(app)
+    live = app.state.service.live
+    with client:
+        who.to_closed_loop()
+        key = next(iter(live._teachers))
+        deadline = time.monotonic() + 30
+        while not any(len(t.responses) == 1 for t in live._teachers[key]):
+            assert time.monotonic() < deadline, "no background decision"
+            time.sleep(0.05)
+        ahead = next(t for t in live._teachers[key] if len(t.responses) == 1)
+        decided = ahead.next()
+        calls: list[str] = []
+        monkeypatch.setattr(teacher_mod.ClosedLoopTeacher, "replay",
+                            classmethod(lambda *a, **k: calls.append("replay")))
+        monkeypatch.setattr(teacher_mod.ClosedLoopTeacher, "_decide",
+                            lambda self: calls.append("decide"))
+        who.send("demo_play_start", {"demo_index": 0})
+        who.send("demo_play_end", {"demo_index": 0, "completed": True, "watch_ms": 50})
+        r = who.send("item_done", {"item": 0})
+        assert r.status_code == 200, r.text
+        assert calls == []
+        item = r.json()["state"]["step"]["item"]
+        assert (item["position"], item["kind"]) == (decided.index, decided.kind)
