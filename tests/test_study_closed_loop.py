@@ -349,3 +349,20 @@ def test_next_item_decided_in_background_while_a_demonstration_is_watched(
         assert calls == []
         item = r.json()["state"]["step"]["item"]
         assert (item["position"], item["kind"]) == (decided.index, decided.kind)
+
+
+@pytest.mark.parametrize("name", ["skateboard", "delivery"])
+def test_game_from_batch_is_build_game(name: str) -> None:
+    """The diagnostic tests' tables, read from the compiled arrays, equal those the domain's
+    own `step` builds (what every post-teaching test is played and scored in)."""
+    import numpy as np
+
+    from cfteach.bec import demo_set
+    from cfteach.domains import load
+    from cfteach.study.games import build_game
+    from cfteach.study.live import game_from_batch
+
+    ds = demo_set(load(name))
+    for d in np.random.default_rng(1).choice(ds.D, 8, replace=False).tolist():
+        want = build_game(ds.instance(d), ds.trajectory_states(d)[0], tuple(ds.batch.actions))
+        assert game_from_batch(ds, d) == want

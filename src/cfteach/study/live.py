@@ -22,8 +22,7 @@ from typing import Any
 
 from cfteach.closedloop import ClosedLoopTeacher, LessonPool, TeacherSettings, build_pool
 from cfteach.closedloop.teacher import Item
-
-from .games import build_game
+from cfteach.jsonable import to_jsonable
 
 #: Teachers kept per server (each a few hundred kB); older ones are replayed when needed.
 MAX_TEACHERS = 512
@@ -88,9 +87,7 @@ class LiveTeaching:
         key = (study["version"], domain, demo)
         g = self._games.get(key)
         if g is None:
-            ds = self.pool(study, domain).ds
-            inst = ds.instance(demo)
-            g = build_game(inst, ds.trajectory_states(demo)[0], tuple(ds.batch.actions))
+            g = game_from_batch(self.pool(study, domain).ds, demo)
             with self._lock:
                 if len(self._games) >= 4096:
                     self._games.pop(next(iter(self._games)))
@@ -138,11 +135,25 @@ class LiveTeaching:
                 old, _ = self._teachers.popitem(last=False)
                 self._locks.pop(old, None)
 
-    def precompute(self, study: dict, session_pk: int, domain: str,
-                   t: ClosedLoopTeacher) -> bool:
+    def decide(self, study: dict, session_pk: int, session_seed: int, domain: str,
+               responses: list[dict], *, ahead: bool = True) -> tuple[Item | None, dict | None]:
+        """The item after `responses` and the belief summary when it was chosen (both
+        memoized on the teacher, so asking again costs nothing). With `ahead`, the item
+        after a demonstration or feedback is then decided in the background."""
+        with self.session_lock(session_pk, domain):
+            t = self.teacher(study, session_pk, session_seed, domain, responses)
+            item, summary = _decided(t)
+            if item is not None and item.kind == "test":
+                self.game(study, domain, item.demo)  # the page's table, built now
+            if ahead:
+                self._precompute(study, session_pk, domain, t)
+        return item, summary
+
+    def _precompute(self, study: dict, session_pk: int, domain: str,
+                    t: ClosedLoopTeacher) -> bool:
         """Decide, in the background, the item after `t`'s pending one when its response
         is known in advance (a demonstration or feedback: ``{}``). At most one task per
-        session; returns whether one was started."""
+        session; returns whether one was started. Call with the session lock held."""
         item = t.next()
         key = (session_pk, domain)
         if item is None or item.kind == "test":
@@ -155,9 +166,12 @@ class LiveTeaching:
 
         def run() -> None:
             try:
-                ahead.observe({})
-                ahead.next()
-                self._remember(key, ahead)
+                with self.session_lock(session_pk, domain):  # a request asking waits for it
+                    ahead.observe({})
+                    item, _ = _decided(ahead)
+                    self._remember(key, ahead)
+                if item is not None and item.kind == "test":
+                    self.game(study, domain, item.demo)  # the page's table, built now too
             finally:
                 with self._lock:
                     self._busy.discard(key)
@@ -166,11 +180,62 @@ class LiveTeaching:
         return True
 
 
+def _decided(t: ClosedLoopTeacher) -> tuple[Item | None, dict | None]:
+    """`t.next()` and its belief summary, memoized on the teacher."""
+    memo = getattr(t, "_live_decided", None)
+    if memo is not None and memo[0] == len(t.responses):
+        return memo[1], memo[2]
+    item = t.next()
+    summary = None if item is None else item_summary(t, item)
+    t._live_decided = (len(t.responses), item, summary)  # type: ignore[attr-defined]
+    return item, summary
+
+
 def item_summary(t: ClosedLoopTeacher, item: Item) -> dict:
     """The belief summary stored with an item when it is chosen."""
     return {"expected_area": float(t.belief.expected_area()),
             "predicted_optimal": item.predicted_optimal,
             "predicted_held_out": t.predicted_held_out()}
+
+
+def game_from_batch(ds: Any, demo: int) -> dict:  # noqa: ANN401 - a DemoSet
+    """`games.build_game` for the start of pool demo `demo`, read from the domain's compiled
+    transition arrays (the same table, about ten times faster): only the moves that end the
+    game ask the instance for the terminal state they reach."""
+    b = ds.batch
+    e, start = int(ds.env[demo]), int(ds.start[demo])
+    inst, states, sink = b.instances[e], b.states[e], b.sink
+    ns, feat = b.next_state[e], b.features[e]
+    index: dict[tuple, int] = {("r", start): 0}
+    nodes: list[tuple] = [("r", start)]
+    shown = [states[start]]
+    nxt: list[list[int] | None] = []
+    phi: list[list[list[float]] | None] = []
+    i = 0
+    while i < len(nodes):
+        kind, s = nodes[i]
+        i += 1
+        if kind == "t":
+            nxt.append(None)
+            phi.append(None)
+            continue
+        row = []
+        for a in range(b.A):
+            j = int(ns[s, a])
+            key: tuple = ("r", j)
+            if j == sink:
+                s2, _, _ = inst.step(states[s], a)
+                key = ("t", s2)
+            if key not in index:
+                index[key] = len(nodes)
+                nodes.append(key)
+                shown.append(key[1] if key[0] == "t" else states[j])
+            row.append(index[key])
+        nxt.append(row)
+        phi.append(feat[s].tolist())
+    return {"actions": list(b.actions),
+            "states": [to_jsonable(inst.state_to_json(x)) for x in shown],
+            "next": nxt, "terminal": [k == "t" for k, _ in nodes], "phi": phi}
 
 
 def path_states(game: dict, actions: list[str]) -> list[dict]:

@@ -23,7 +23,7 @@ from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .build import browser_game
 from .games import ScoringError, public_game, replay
 from .layout import instance_layout
-from .live import LiveTeaching, item_summary, path_states, responses_of
+from .live import LiveTeaching, path_states, responses_of
 from .models import ClientReport, ClosedLoopItem, Event, Session, TestResponse, aware, utcnow
 from .steps import ALLOWED, build_steps, demo_required_ms
 from .texts import EDUCATION, GENDERS, LIKERT
@@ -269,6 +269,10 @@ class StudyService:
 
     def post_event(self, token: str | None, req: schemas.EventRequest) -> dict:
         """Store one event exactly once and apply its effect on the step machine."""
+        try:
+            self._cl_prepare(token, req)
+        except (ApiError, ValueError, KeyError, TypeError):
+            pass  # the transaction below refuses the event with the right answer
         with self.Session() as db:
             try:
                 with db.begin():
@@ -375,23 +379,48 @@ class StudyService:
         study = self.study_of(row)
         dom = step["domain"]
         responses = responses_of(self._cl_stored(db, row, row.step_index))
-        with self.live.session_lock(row.id, dom):
-            t = self.live.teacher(study, row.id, row.seed, dom, responses)
-            item = t.next()
-            if item is None:
-                return None
-            ds = t.pool.ds
-            inst = ds.instance(item.demo)
-            rec = ClosedLoopItem(
-                session_pk=row.id, domain=dom, position=item.index, kind=item.kind,
-                purpose=item.purpose, demo=item.demo, about=item.about,
-                env_code="".join(str(int(b)) for b in inst.env_code),
-                env_index=int(inst.index),
-                start_state=inst.state_to_json(ds.trajectory_states(item.demo)[0]),
-                shown_at=now, **item_summary(t, item))
-            db.add(rec)
-            self.live.precompute(study, row.id, dom, t)
+        # usually found ready: decided by `_cl_prepare` or in the background
+        item, summary = self.live.decide(study, row.id, row.seed, dom, responses)
+        if item is None:
+            return None
+        ds = self.live.pool(study, dom).ds
+        inst = ds.instance(item.demo)
+        rec = ClosedLoopItem(
+            session_pk=row.id, domain=dom, position=item.index, kind=item.kind,
+            purpose=item.purpose, demo=item.demo, about=item.about,
+            env_code="".join(str(int(b)) for b in inst.env_code), env_index=int(inst.index),
+            start_state=inst.state_to_json(ds.trajectory_states(item.demo)[0]),
+            shown_at=now, **summary)
+        db.add(rec)
         return rec
+
+    def _cl_prepare(self, token: str | None, req: schemas.EventRequest) -> None:
+        """Before the write transaction: decide the item this event will lead to, so the
+        transaction (which holds SQLite's write lock) only finds it ready. Speculative: any
+        problem is left for the transaction to report, and a refused event's decision is
+        simply never used (teachers are found by the responses they have seen)."""
+        if req.type not in ("item_done", "continue"):
+            return
+        with self.ReadSession() as db, db.begin():
+            row = self._session(db, token)
+            if row.status != "in_progress" or req.step_index != row.step_index:
+                return
+            steps = self.steps(row)
+            step = steps[row.step_index]
+            if step["kind"] == "closed_loop" and req.type == "item_done":
+                pending = self._cl_pending(db, row, step)
+                p = req.payload
+                if pending is None or p.get("item") != pending.position or (
+                        pending.kind == "test") != (p.get("actions") is not None):
+                    return
+                payloads = [*self._cl_stored(db, row, row.step_index), p]
+            elif (req.type == "continue" and row.step_index + 1 < len(steps)
+                  and steps[row.step_index + 1]["kind"] == "closed_loop"):
+                step, payloads = steps[row.step_index + 1], []
+            else:
+                return
+            study, pk, seed = self.study_of(row), row.id, row.seed
+        self.live.decide(study, pk, seed, step["domain"], responses_of(payloads))
 
     def _cl_item_done(self, db: DBSession, row: Session, step: dict, ev: Event,
                       p: schemas.ItemDone, now: datetime) -> bool:
