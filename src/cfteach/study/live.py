@@ -63,6 +63,7 @@ class LiveTeaching:
         self._lock = threading.Lock()
         self._pool_lock = threading.Lock()
         self._busy: set[tuple] = set()
+        self._ahead: dict[tuple, int] = {}  # session -> responses its last ahead task had
         self._executor = ThreadPoolExecutor(max_workers=workers,
                                             thread_name_prefix="closed-loop")
 
@@ -134,6 +135,7 @@ class LiveTeaching:
             while len(self._teachers) > MAX_TEACHERS:
                 old, _ = self._teachers.popitem(last=False)
                 self._locks.pop(old, None)
+                self._ahead.pop(old, None)
 
     def decide(self, study: dict, session_pk: int, session_seed: int, domain: str,
                responses: list[dict], *, ahead: bool = True) -> tuple[Item | None, dict | None]:
@@ -159,17 +161,17 @@ class LiveTeaching:
         if item is None or item.kind == "test":
             return False
         with self._lock:
-            if key in self._busy:
-                return False
+            if key in self._busy or self._ahead.get(key) == len(t.responses):
+                return False  # running, or already done for this very item
             self._busy.add(key)
+            self._ahead[key] = len(t.responses)
         ahead = copy.deepcopy(t, {id(t.pool): t.pool})
 
         def run() -> None:
             try:
-                with self.session_lock(session_pk, domain):  # a request asking waits for it
-                    ahead.observe({})
-                    item, _ = _decided(ahead)
-                    self._remember(key, ahead)
+                ahead.observe({})  # a private copy: no lock held while computing
+                item, _ = _decided(ahead)
+                self._remember(key, ahead)
                 if item is not None and item.kind == "test":
                     self.game(study, domain, item.demo)  # the page's table, built now too
             finally:

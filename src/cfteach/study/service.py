@@ -379,8 +379,9 @@ class StudyService:
         study = self.study_of(row)
         dom = step["domain"]
         responses = responses_of(self._cl_stored(db, row, row.step_index))
-        # usually found ready: decided by `_cl_prepare` or in the background
-        item, summary = self.live.decide(study, row.id, row.seed, dom, responses)
+        # usually found ready (decided by `_cl_prepare` or in the background), as this
+        # runs inside the write transaction
+        item, summary = self.live.decide(study, row.id, row.seed, dom, responses, ahead=False)
         if item is None:
             return None
         ds = self.live.pool(study, dom).ds
