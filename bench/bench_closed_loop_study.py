@@ -82,6 +82,8 @@ def main() -> int:
                     "participant's events")
     ap.add_argument("--max-items", type=int, default=12, help="teacher's max_items")
     ap.add_argument("--db", default=None, help="database URL (default: a fresh SQLite file)")
+    ap.add_argument("--open-loop", action="store_true", help="the same run with the "
+                    "'proposed' condition instead (a baseline for the machine's own load)")
     ap.add_argument("--timeout", type=float, default=900.0, help="give up after (s)")
     args = ap.parse_args()
     if not 1 <= args.participants <= MAX_PARTICIPANTS:
@@ -91,7 +93,8 @@ def main() -> int:
     tmp = Path(tempfile.mkdtemp(prefix="cfteach-cl-load-"))
     study = tmp / "study"
     init_study(study, preview_sources(["skateboard"]), demo_step_ms=10,
-               conditions=["closed_loop"], teacher={"max_items": args.max_items})
+               conditions=["proposed" if args.open_loop else "closed_loop"],
+               teacher={"max_items": args.max_items})
     db = args.db or f"sqlite:///{tmp / 'load.db'}"
     if db.startswith("postgresql"):
         engine = make_engine(db)
@@ -145,6 +148,8 @@ def _run(base: str, args: argparse.Namespace) -> tuple[dict[str, int], dict, flo
 
 
 def _pct(xs: list[float]) -> str:
+    if not xs:
+        return "none"
     a = np.asarray(xs) * 1000
     return (f"p50 {np.percentile(a, 50):.0f} ms, p99 {np.percentile(a, 99):.0f} ms, "
             f"max {a.max():.0f} ms (n={len(a)})")
@@ -166,7 +171,8 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
     engine.dispose()
     kind = db.split(":")[0].split("+")[0]
     events = sum(sent.values())
-    print(f"database: {kind}; closed-loop participants: {args.participants} at once, one "
+    who = "open-loop (proposed)" if args.open_loop else "closed-loop"
+    print(f"database: {kind}; {who} participants: {args.participants} at once, one "
           f"event per {args.pace:g} s each; wall time {wall:.0f} s; {events} events "
           f"acknowledged ({events / wall:.0f}/s); {items} closed-loop items")
     print(f"CPU: server {cpu[0]:.0f} s ({cpu[0] / wall:.2f} cores), simulated participants "
