@@ -366,3 +366,19 @@ def test_game_from_batch_is_build_game(name: str) -> None:
     for d in np.random.default_rng(1).choice(ds.D, 8, replace=False).tolist():
         want = build_game(ds.instance(d), ds.trajectory_states(d)[0], tuple(ds.batch.actions))
         assert game_from_batch(ds, d) == want
+
+
+def test_held_out_summary_equals_the_teachers_own(cl_study: Path) -> None:
+    """The exported `predicted_held_out` (asked of the held-out rows only) is exactly the
+    teacher's `predicted_held_out()` at every item of a session."""
+    from cfteach.study.live import held_out_p
+
+    cell = load_study(cl_study)["closed_loop"]["skateboard"]
+    pool = pool_from_cell(cell)
+    t = ClosedLoopTeacher(pool, settings_of(cell), seed=11)
+    seen = 0
+    while (item := t.next()) is not None:
+        assert held_out_p(t) == t.predicted_held_out()
+        t.observe({"actions": ["up"]} if item.kind == "test" else {})
+        seen += 1
+    assert seen >= 3
