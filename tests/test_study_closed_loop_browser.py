@@ -142,16 +142,3 @@ def test_browser_closed_loop_session(browser, cl_only_study: Path,  # noqa: ANN0
     with open(out / "test_responses.csv", newline="", encoding="utf-8") as f:
         assert len(list(csv.DictReader(f))) == 6  # then the same post-teaching tests
 
-
-def test_screenshots_show_closed_loop_items(cl_only_study: Path, tmp_path: Path) -> None:
-    """`cfteach study screenshots` takes one picture per kind of closed-loop item."""
-    from PIL import Image
-
-    from cfteach.study.screenshots import take_screenshots
-
-    saved = take_screenshots(cl_only_study, tmp_path, kinds=("closed_loop",))
-    names = sorted(p.name for p in saved)
-    assert names == ["study-closed-loop-demonstration.png", "study-closed-loop-feedback.png",
-                     "study-closed-loop-test.png"]
-    for p in saved:
-        assert Image.open(p).size[0] == 1100
