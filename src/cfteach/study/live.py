@@ -27,8 +27,11 @@ from cfteach.closedloop.pool import SATISFIED_TOL
 from cfteach.closedloop.teacher import Item
 from cfteach.jsonable import to_jsonable
 
-#: Teachers kept per server (each a few hundred kB); older ones are replayed when needed.
+#: Sessions whose teachers are kept per server (up to two teachers of a few hundred kB
+#: each); older ones are replayed from their events when needed.
 MAX_TEACHERS = 512
+#: Diagnostic-test tables kept per server (up to about half a MB each in Python objects).
+MAX_GAMES = 256
 
 
 def teacher_seed(session_seed: int, domain: str) -> int:
@@ -93,7 +96,7 @@ class LiveTeaching:
         if g is None:
             g = game_from_batch(self.pool(study, domain).ds, demo)
             with self._lock:
-                if len(self._games) >= 4096:
+                if len(self._games) >= MAX_GAMES:
                     self._games.pop(next(iter(self._games)))
                 self._games[key] = g
         return g

@@ -271,7 +271,7 @@ class StudyService:
         """Store one event exactly once and apply its effect on the step machine."""
         try:
             self._cl_prepare(token, req)
-        except (ApiError, ValueError, KeyError, TypeError):
+        except (ApiError, ValueError, KeyError, TypeError, RuntimeError):
             pass  # the transaction below refuses the event with the right answer
         with self.Session() as db:
             try:
