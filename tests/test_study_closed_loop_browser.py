@@ -77,6 +77,16 @@ class ClosedLoopParticipant(test_study_browser.Participant):
                 page.click("#play")
                 page.wait_for_selector("#board[data-watched='true']")
             elif kind == "test":
+                if not wrong_done:  # a reload mid-game lands on the same item, game restarted
+                    page.click("#board")
+                    self.press(["up"])
+                    page.reload()
+                    page.wait_for_selector("main[data-step='closed_loop'] #cl-item",
+                                           state="attached")
+                    assert page.get_attribute("#cl-item", "data-position") == str(pos)
+                    assert page.get_attribute("#cl-item", "data-kind") == "test"
+                    assert page.get_attribute("#board", "data-moves") == ""
+                    self.reloaded = pos
                 svc = self.app.state.service
                 item = self._pending()
                 game = svc.live.game(svc.study, "skateboard", item.demo)
@@ -118,6 +128,7 @@ def test_browser_closed_loop_session(browser, cl_only_study: Path,  # noqa: ANN0
     kinds = [k for _, k in who.shown]
     assert [p for p, _ in who.shown] == list(range(len(who.shown)))
     wrong_pos, wrong_moves = who.wrong
+    assert who.reloaded == wrong_pos
     # the wrong answer got feedback next, then a (remedial or next) lesson
     assert who.shown[wrong_pos + 1] == (wrong_pos + 1, "feedback")
     assert who.feedback_seen == wrong_pos + 1
