@@ -13,6 +13,7 @@ a background thread decides the item after it, at most one task per session at a
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import threading
 import zlib
@@ -70,6 +71,7 @@ class LiveTeaching:
         self._pool_lock = threading.Lock()
         self._busy: set[tuple] = set()
         self._ahead: dict[tuple, int] = {}  # session -> responses its last ahead task had
+        self._slots = threading.BoundedSemaphore(workers)
         self._executor = ThreadPoolExecutor(max_workers=workers,
                                             thread_name_prefix="closed-loop")
 
@@ -147,8 +149,11 @@ class LiveTeaching:
                responses: list[dict], *, ahead: bool = True) -> tuple[Item | None, dict | None]:
         """The item after `responses` and the belief summary when it was chosen (both
         memoized on the teacher, so asking again costs nothing). With `ahead`, the item
-        after a demonstration or feedback is then decided in the background."""
-        with self.session_lock(session_pk, domain):
+        after a demonstration or feedback is then decided in the background. With `ahead`
+        (outside any database transaction) at most `workers` decisions run at once, so the
+        requests that hold the database's write lock are not starved of the interpreter."""
+        with self._slots if ahead else contextlib.nullcontext(), \
+                self.session_lock(session_pk, domain):
             t = self.teacher(study, session_pk, session_seed, domain, responses)
             item, summary = _decided(t)
             if item is not None and item.kind == "test":
