@@ -125,12 +125,41 @@ def test_incomplete_data() -> None:
     ex = StudyExport(ex.participants, tests, likert, ex.demo_views)
     kept, table = apply_exclusions(ex, ExclusionConfig(aggregate_sd=None, item_sd=None))
     reasons = table.set_index("participant_id")["reason"].to_dict()
-    assert reasons == {"p01": "15 of 18 test responses", "p02": "5 of 6 Likert answers"}
+    assert reasons == {
+        "p01": "15 of 18 test responses (delivery/low 0 of 2, delivery/medium 1 of 2)",
+        "p02": "5 of 6 Likert answers (missing delivery/informativeness)",
+    }
     # an explicit expected count overrides the inferred one
     _, t2 = apply_exclusions(
         ex, ExclusionConfig(aggregate_sd=None, item_sd=None, expected_tests=15)
     )
     assert set(t2[t2.rule == "incomplete"]["participant_id"]) == {"p00", "p02", "p03", "p04"}
+
+
+def test_complete_is_defined_by_the_design_not_by_the_others() -> None:
+    """Everybody lacks the same three tests: before, the most anyone had (15) was 'complete'."""
+    opt, rew = _clean(5)
+    ex = make_export(opt, rew)
+    tests = ex.tests[~ex.tests.test_id.isin(["tiles-high-a", "tiles-high-b", "tiles-low-a"])]
+    ex = StudyExport(ex.participants, tests, ex.likert, ex.demo_views)
+    kept, table = apply_exclusions(ex, ExclusionConfig(aggregate_sd=None, item_sd=None))
+    assert kept.participants.empty
+    assert set(table["reason"]) == {"15 of 18 test responses (tiles/low 1 of 2, tiles/high 0 of 2)"}
+
+
+def test_eighteen_rows_without_a_high_test_are_incomplete() -> None:
+    """18 rows but no 'high' cell: kept before, and then silently dropped by pingouin."""
+    opt, rew = _clean(5)
+    ex = make_export(opt, rew)
+    t = ex.tests.copy()
+    mine = (t.participant_id == "p03") & (t.difficulty == "high")
+    t.loc[mine, "difficulty"] = "medium"
+    t.loc[mine, "test_id"] = t.loc[mine, "test_id"] + "-as-medium"
+    ex = StudyExport(ex.participants, t, ex.likert, ex.demo_views)
+    _, table = apply_exclusions(ex, ExclusionConfig(aggregate_sd=None, item_sd=None))
+    assert table["participant_id"].tolist() == ["p03"]
+    assert table["reason"].iloc[0].startswith("18 of 18 test responses (delivery/medium 4 of 2")
+    assert "delivery/high 0 of 2" in table["reason"].iloc[0]
 
 
 def test_aggregate_rule_matches_hand_threshold() -> None:

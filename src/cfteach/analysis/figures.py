@@ -145,6 +145,8 @@ def _stacked(ax: plt.Axes, pct: pd.DataFrame, item: str) -> None:
 def confidence_plot(frames: Frames, spearman: dict[str, Any], out_dir: Path) -> list[str]:
     """Confidence by difficulty: bubbles sized by count, plus stacked answer shares."""
     cells = frames.cells.dropna(subset=["confidence"])
+    if cells.empty:  # the confidence item is optional in the export
+        return []
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.2))
     counts = cells.groupby(["difficulty_code", "confidence"]).size().reset_index(name="n")
     ax.scatter(
@@ -162,7 +164,7 @@ def confidence_plot(frames: Frames, spearman: dict[str, Any], out_dir: Path) -> 
     ax.set_yticks(range(1, 6))
     ax.set_xlabel("Test difficulty")
     ax.set_ylabel("Confidence (median per participant x difficulty)")
-    r, n = spearman["r"], spearman["n"]
+    r, n = spearman.get("r"), len(cells)
     ax.set_title(f"r_s = {r:.2f}, N = {n}" if r is not None else f"N = {n}")
     ax.legend(loc="lower left", fontsize=8)
     ax.set_xlim(-0.5, 2.5)
@@ -185,22 +187,27 @@ def _stars(p: float | None) -> str:
     return "***" if p < 0.001 else "**" if p < 0.01 else "*" if p < 0.05 else "n.s."
 
 
-def difficulty_plot(results: dict[str, Any], out_dir: Path) -> list[str]:
+def difficulty_plot(frames: Frames, results: dict[str, Any], out_dir: Path) -> list[str]:
     """H1: mean proportion optimal per difficulty (95% CI) with the paired post hocs."""
-    rm = results["h1"]["rm_anova"]
+    from cfteach.analysis.stats import difficulty_means
+
     ph = results["h1"]["posthoc"]["paired"]
+    means = difficulty_means(frames.cells)
+    n = int(frames.cells["participant_id"].nunique())
     fig, ax = plt.subplots(figsize=(5.2, 4.2))
     x = np.arange(len(DIFFICULTIES))
-    m = [rm["means"][d]["mean"] for d in DIFFICULTIES]
-    ci = [rm["means"][d]["ci95"] for d in DIFFICULTIES]
+    m = [means[d]["mean"] for d in DIFFICULTIES]
+    ci = [means[d]["ci95"] for d in DIFFICULTIES]
     m_arr = np.array([np.nan if v is None else v for v in m], dtype=float)
     lo = np.array([np.nan if c[0] is None else c[0] for c in ci], dtype=float)
     hi = np.array([np.nan if c[1] is None else c[1] for c in ci], dtype=float)
     ax.bar(x, m_arr, color=["#8fbc8f", "#e9c46a", "#e76f51"], edgecolor="k", width=0.6)
     ax.errorbar(x, m_arr, yerr=[m_arr - lo, hi - m_arr], fmt="none", ecolor="k", capsize=4)
     top = np.nanmax(hi) if np.isfinite(hi).any() else 1.0
-    pairs = {(r["A"], r["B"]): r["p_corr"] for r in ph["rows"]}
+    pairs = {(r["A"], r["B"]): r["p_corr"] for r in ph.get("rows", [])}
     for k, (a, b) in enumerate([("low", "medium"), ("medium", "high"), ("low", "high")]):
+        if not pairs:
+            break
         p = pairs.get((a, b), pairs.get((b, a)))
         i, j = DIFFICULTIES.index(a), DIFFICULTIES.index(b)
         y = top + 0.06 + 0.08 * k
@@ -210,7 +217,8 @@ def difficulty_plot(results: dict[str, Any], out_dir: Path) -> list[str]:
     ax.set_xlabel("Test difficulty")
     ax.set_ylabel("Proportion optimal (mean, 95% CI)")
     ax.set_ylim(0, max(1.0, top + 0.35))
-    ax.set_title(f"N = {rm['n_participants']}; paired t-tests, {ph['padjust']}", fontsize=9)
+    test = f"paired t-tests, {ph['padjust']}" if pairs else "too few participants for tests"
+    ax.set_title(f"N = {n}; {test}", fontsize=9)
     fig.tight_layout()
     return _save(fig, out_dir, "difficulty")
 
@@ -290,11 +298,12 @@ def exploratory_plot(frames: Frames, out_dir: Path) -> list[str]:
 
 def make_figures(frames: Frames, results: dict[str, Any], out_dir: Path) -> dict[str, list[str]]:
     """All figures into `out_dir`; returns figure name -> file names."""
-    return {
-        "difficulty": difficulty_plot(results, out_dir),
+    figures = {
+        "difficulty": difficulty_plot(frames, results, out_dir),
         "interaction": interaction_plot(results["mixed"], out_dir),
         "paper_bars": paper_bars(results["mixed"], out_dir),
         "likert": likert_bars(frames, out_dir),
         "confidence": confidence_plot(frames, results["h1"]["spearman"], out_dir),
         "exploratory": exploratory_plot(frames, out_dir),
     }
+    return {name: files for name, files in figures.items() if files}

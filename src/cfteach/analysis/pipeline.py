@@ -49,12 +49,7 @@ def compute_results(
     cfg = config or AnalysisConfig()
     kept, excluded = apply_exclusions(export, cfg.exclusions)
     if kept.participants.empty:
-        raise ValueError("no participant is left after the exclusions; nothing to analyse")
-    if kept.participants["participant_id"].nunique() < 2:
-        raise ValueError(
-            f"{len(kept.participants)} participant(s) left after the exclusions; "
-            "the analyses need at least 2"
-        )
+        raise ValueError(_nobody_left(export, excluded))
     if kept.tests.empty:
         raise ValueError("the retained participants have no test responses; nothing to analyse")
     frames = build_frames(kept)
@@ -91,8 +86,21 @@ def compute_results(
     return to_jsonable(summary), frames
 
 
+def _nobody_left(export: StudyExport, excluded: Any) -> str:
+    """Why no participant is left, by rule, so the user knows which rule to look at."""
+    by_rule = excluded["rule"].value_counts()
+    rules = ", ".join(f"{rule}: {n}" for rule, n in by_rule.items())
+    return (
+        f"no participant is left after the exclusions (all {len(export.participants)} "
+        f"session(s) excluded; {rules or 'no rule'})"
+    )
+
+
 def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str, Any]:
+    from cfteach.analysis.descriptives import descriptives
+
     return {
+        "descriptives": descriptives(frames),
         "icc": stats.icc_domains(frames),
         "h1": {
             "rm_anova": stats.rm_anova_difficulty(frames),

@@ -86,9 +86,34 @@ def mean_ci(values: pd.Series | np.ndarray, level: float = 0.95) -> dict[str, fl
     return {"mean": m, "sd": sd, "n": n, "ci95": [m - half, m + half]}
 
 
+def skipped(test: str, why: str) -> dict[str, Any]:
+    """The entry of a test the data cannot support (a pilot, a missing group, no ratings)."""
+    return {"test": test, "skipped": why}
+
+
+def complete_cells(cells: pd.DataFrame) -> pd.DataFrame:
+    """The participant x difficulty cells of participants who have all three difficulties.
+
+    Repeated-measures tests drop anyone else; doing it here means the N we report is the
+    N the test used.
+    """
+    n = cells.dropna(subset=["optimal"]).groupby("participant_id", observed=True)["difficulty"]
+    full = n.nunique()
+    keep = full.index[full == len(DIFFICULTIES)]
+    return cells[cells["participant_id"].isin(keep)]
+
+
 def icc_domains(frames: Frames) -> dict[str, Any]:
     """ICC(C,k) = ICC3k: two-way mixed, consistency, mean of k raters (domains)."""
     dm = frames.domain_means
+    wide = dm.pivot_table(index="participant_id", columns="domain", values="optimal").dropna()
+    if len(wide) < 2 or wide.shape[1] < 2:
+        return skipped(
+            "ICC(C,k)",
+            f"needs at least 2 participants with every domain and 2 domains (have "
+            f"{len(wide)} participant(s), {wide.shape[1]} domain(s))",
+        )
+    dm = dm[dm["participant_id"].isin(wide.index)]
     res = pg.intraclass_corr(
         data=dm, targets="participant_id", raters="domain", ratings="optimal", nan_policy="omit"
     )
@@ -122,7 +147,13 @@ def rm_anova_difficulty(frames: Frames) -> dict[str, Any]:
     Mauchly's test and the Greenhouse-Geisser correction come with it; the F test reported
     in the paper's style uses the uncorrected df (as the paper did), the GG p is alongside.
     """
-    cells = frames.cells
+    cells = complete_cells(frames.cells)
+    n = int(cells["participant_id"].nunique())
+    test = "one-way repeated-measures ANOVA (pingouin.rm_anova)"
+    if n < len(DIFFICULTIES):  # pingouin always runs Mauchly's test: it needs n - 1 >= k - 1
+        return skipped(
+            test, f"needs at least 3 participants with all three difficulties (have {n})"
+        )
     res = pg.rm_anova(
         data=cells,
         dv="optimal",
@@ -132,8 +163,9 @@ def rm_anova_difficulty(frames: Frames) -> dict[str, Any]:
         effsize="ng2",
     )
     r = res.iloc[0]
+    used = frames.tests["participant_id"].isin(set(cells["participant_id"]))
     return {
-        "test": "one-way repeated-measures ANOVA (pingouin.rm_anova)",
+        "test": test,
         "F": _num(r["F"]),
         "df1": _num(r["ddof1"]),
         "df2": _num(r["ddof2"]),
@@ -144,8 +176,8 @@ def rm_anova_difficulty(frames: Frames) -> dict[str, Any]:
         "mauchly_p": _num(_get(r, "p_spher")),
         "sphericity": None if r.get("sphericity") is None else bool(r.get("sphericity")),
         "ng2": _num(r.get("ng2")),
-        "n_participants": int(cells["participant_id"].nunique()),
-        "n_observations": int(len(frames.tests)),
+        "n_participants": n,
+        "n_observations": int(used.sum()),
         "means": difficulty_means(cells),
     }
 
@@ -159,7 +191,11 @@ def posthoc_difficulty(
     which ignores that the three means come from the same person; it is kept, labelled, so
     the paper's numbers can be compared.
     """
-    cells = frames.cells.copy()
+    cells = complete_cells(frames.cells).copy()
+    n = int(cells["participant_id"].nunique())
+    if n < 2:
+        why = f"needs at least 2 participants with all three difficulties (have {n})"
+        return {"paired": skipped("paired t-tests", why)}
     cells["difficulty"] = cells["difficulty"].astype(str)
     paired = pg.pairwise_tests(
         data=cells,
@@ -220,10 +256,19 @@ def posthoc_difficulty(
 def spearman_confidence(frames: Frames) -> dict[str, Any]:
     """H1: Spearman correlation of (median) confidence with difficulty (0/1/2), n = 3N."""
     c = frames.cells.dropna(subset=["confidence"])
+    test = "Spearman rank correlation (pingouin.corr)"
+    if c.empty:
+        return skipped(test, "no confidence ratings in the export (the column is optional)")
+    if len(c) < 3 or c["confidence"].nunique() < 2 or c["difficulty_code"].nunique() < 2:
+        return skipped(
+            test,
+            f"needs at least 3 participant x difficulty cells with varying confidence "
+            f"(have {len(c)})",
+        )
     res = pg.corr(c["difficulty_code"], c["confidence"], method="spearman")
     r = res.iloc[0]
     return {
-        "test": "Spearman rank correlation (pingouin.corr)",
+        "test": test,
         "r": _num(r["r"]),
         "p": _num(_get(r, "p_val")),
         "ci95": _ci(_get(r, "CI95")),
@@ -293,7 +338,7 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
     """
     if factor not in BETWEEN_FACTORS:
         raise ValueError(f"factor must be one of {BETWEEN_FACTORS}, got {factor!r}")
-    cells = frames.cells.copy()
+    cells = complete_cells(frames.cells).copy()
     if factor == "condition":
         cells["condition"] = cells["condition"].astype(str)
     levels = usable_levels(cells, factor)

@@ -54,7 +54,7 @@ class SyntheticConfig:
     n_screened_out: int | None = None  # default: 5% of n_participants
     n_abandoned: int | None = None  # default: 3% of n_participants
     n_preview: int = 1
-    n_outliers: int = 2  # completed participants who answer far worse than everyone else
+    n_outliers: int | None = None  # far worse than everyone else; default min(2, N // 10)
 
     def __post_init__(self) -> None:
         if self.n_participants < 1:
@@ -63,8 +63,13 @@ class SyntheticConfig:
             v = getattr(self, name)
             if v is not None and v < 0:
                 raise ValueError(f"{name} must be >= 0, got {v}")
-        if self.n_outliers > self.n_participants:
+        if self.n_outliers is not None and self.n_outliers > self.n_participants:
             raise ValueError("n_outliers cannot exceed n_participants")
+
+    @property
+    def outliers(self) -> int:
+        """The number of planted outliers (a pilot of 1-9 participants gets none)."""
+        return min(2, self.n_participants // 10) if self.n_outliers is None else self.n_outliers
 
 
 def _hex(rng: np.random.Generator, n: int) -> str:
@@ -112,7 +117,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
         + ["abandoned"] * n_abandoned
         + ["preview"] * cfg.n_preview
     )
-    outliers = set(rng.choice(n, cfg.n_outliers, replace=False).tolist()) if n else set()
+    outliers = set(rng.choice(n, cfg.outliers, replace=False).tolist()) if n else set()
     order = rng.permutation(len(kinds))  # interleave kinds in arrival order
     t0 = datetime(2026, 1, 12, 14, 0, tzinfo=UTC)
     parts, tests, likert, demos = [], [], [], []

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
+import click
 import typer
 
 _EXC = "Exclusions"
@@ -26,6 +27,23 @@ def _read_manual(path: Path) -> dict[str, str]:
     return {
         pid: (r or "manual exclusion") for pid, r in zip(df["participant_id"], reasons, strict=True)
     }
+
+
+def unexpected_error(exc: BaseException, export_dir: Path | None) -> str:
+    """One line for an error we did not foresee: what failed, where, and how to report it.
+
+    The innermost frame of cfteach's own code and the file/column words of the message are
+    what a user needs to find the bad input; the traceback itself stays out of the terminal.
+    """
+    import traceback
+
+    frames = [f for f in traceback.extract_tb(exc.__traceback__) if "cfteach" in f.filename]
+    where = f" in {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
+    msg = " ".join(str(exc).split()) or "(no message)"
+    return (
+        f"analysis of {export_dir} failed{where}: {type(exc).__name__}: {msg} "
+        "(unexpected: please report it)"
+    )
 
 
 def analyze(
@@ -168,25 +186,25 @@ def analyze(
     from cfteach.analysis import analyze as run
 
     note = None
-    if synthetic is not None:
-        scfg = SyntheticConfig(
-            n_participants=synthetic,
-            seed=seed,
-            difficulty_effect=difficulty_effect,
-            interaction=interaction,
-        )
-        export_dir = write_export(generate(scfg), out / "export")
-        note = (
-            f"**Simulated data**: `cfteach analyze --synthetic {synthetic} --seed {seed} "
-            f"--difficulty-effect {difficulty_effect:g} --interaction {interaction:g}` "
-            "(planted effects; see docs/analysis.md). Not the paper's data."
-        )
-        typer.echo(
-            f"wrote simulated export ({synthetic} participants, seed {seed}) to {export_dir}"
-        )
-        if export_only:
-            return
     try:
+        if synthetic is not None:
+            scfg = SyntheticConfig(
+                n_participants=synthetic,
+                seed=seed,
+                difficulty_effect=difficulty_effect,
+                interaction=interaction,
+            )
+            export_dir = write_export(generate(scfg), out / "export")
+            note = (
+                f"**Simulated data**: `cfteach analyze --synthetic {synthetic} --seed {seed} "
+                f"--difficulty-effect {difficulty_effect:g} --interaction {interaction:g}` "
+                "(planted effects; see docs/analysis.md). Not the paper's data."
+            )
+            typer.echo(
+                f"wrote simulated export ({synthetic} participants, seed {seed}) to {export_dir}"
+            )
+            if export_only:
+                return
         excl = ExclusionConfig(
             drop_preview=not keep_preview,
             expected_tests=expected_tests,
@@ -205,16 +223,26 @@ def analyze(
             authors_tukey=authors_tukey,
         )
         results = run(export_dir, out, cfg, note=note)
+    except (typer.Exit, click.ClickException):
+        raise
     except (ExportError, ValueError) as exc:
-        typer.echo(f"error: {exc}", err=True)
+        typer.echo("error: " + " ".join(str(exc).split()), err=True)
         raise typer.Exit(code=2) from exc
+    except Exception as exc:  # noqa: BLE001 - no traceback may reach the user (see docs)
+        typer.echo(f"error: {unexpected_error(exc, export_dir)}", err=True)
+        raise typer.Exit(code=1) from exc
     p = results["participants"]
     rm = results["h1"]["rm_anova"]
     from cfteach.analysis.report import fmt_F
 
+    h1 = (
+        f"not computed ({rm['skipped']})"
+        if "skipped" in rm
+        else fmt_F(rm["df1"], rm["df2"], rm["F"], rm["p"])
+    )
     typer.echo(
         f"{p['n_retained']} of {p['n_sessions']} sessions analysed ({p['n_excluded']} "
-        f"excluded). H1: {fmt_F(rm['df1'], rm['df2'], rm['F'], rm['p'])}."
+        f"excluded). H1: {h1}."
     )
     typer.echo(f"report: {out / 'report.html'}  ({out / 'report.md'}, {out / 'results.json'})")
 
