@@ -98,8 +98,14 @@ def _nobody_left(export: StudyExport, excluded: Any) -> str:
 
 def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str, Any]:
     from cfteach.analysis.descriptives import descriptives
+    from cfteach.analysis.factorial import full_anova
 
+    full = full_anova(stats.complete_cells(frames.cells))
     return {
+        "full_anova": full.get("terms", []),
+        "full_anova_participants": full.get("participants", []),
+        "full_anova_skipped": full.get("skipped"),
+        "full_anova_detail": {k: v for k, v in full.items() if k not in ("terms", "participants")},
         "descriptives": descriptives(frames),
         "icc": stats.icc_domains(frames),
         "h1": {

@@ -392,6 +392,57 @@ def _spearman_text(doc: Doc, sp: dict[str, Any]) -> None:
     )
 
 
+TERM_LABELS = {
+    "counterfactual": "Counterfactual (CF)",
+    "feature_scaffolding": "Feature scaffolding (FS)",
+    "difficulty": "Difficulty",
+    "counterfactual:feature_scaffolding": "CF × FS",
+    "counterfactual:difficulty": "CF × difficulty",
+    "feature_scaffolding:difficulty": "FS × difficulty",
+    "counterfactual:feature_scaffolding:difficulty": "CF × FS × difficulty",
+}
+
+
+def _full_anova_section(doc: Doc, results: dict[str, Any]) -> None:
+    doc.h(2, "Full factorial model: counterfactual × feature scaffolding × difficulty")
+    terms = results.get("full_anova") or []
+    if not terms:
+        doc.p(f"Not computed: {results.get('full_anova_skipped') or 'no data'}.")
+        return
+    detail = results.get("full_anova_detail", {})
+    sph = detail.get("sphericity", {})
+    rejected = bool(sph.get("rejected"))
+    doc.p(
+        "One 2 × 2 (between) × 3 (within) split-plot ANOVA with all seven terms (type III "
+        f"sums of squares, sum-to-zero coding; N = {len(results['full_anova_participants'])} "
+        "participants with all three difficulties). Mauchly's test of sphericity: "
+        f"W = {fmt_num(sph.get('mauchly_W'), 3)}, {fmt_p(sph.get('mauchly_p'))}; "
+        f"Greenhouse-Geisser ε = {fmt_num(sph.get('eps_gg'), 3)}. "
+        + (
+            "Sphericity is rejected, so the within terms are reported with the GG-corrected "
+            "df and p."
+            if rejected
+            else "Sphericity is not rejected; the uncorrected within tests are used (the GG "
+            "p is shown alongside)."
+        )
+        + " The paper ran the three separate two-way models below instead, which cannot test "
+        "CF × FS or the three-way term."
+    )
+    rows = []
+    for t in terms:
+        gg = rejected and t.get("df1_gg") is not None
+        df1, df2, p = (t["df1_gg"], t["df2_gg"], t["p_gg"]) if gg else (t["df1"], t["df2"], t["p"])
+        rows.append(
+            [
+                TERM_LABELS.get(t["term"], t["term"]),
+                fmt_F(df1, df2, t["F"], p),
+                fmt_p(t["p_gg"]) if t["p_gg"] is not None else "",
+                fmt_num(t["eta2_partial"], 3, lead=False),
+            ]
+        )
+    doc.table(["Term", "Test" + (" (GG where within)" if rejected else ""), "p (GG)", "ηp²"], rows)
+
+
 def _descriptives_section(doc: Doc, desc: dict[str, Any] | None) -> None:
     if not desc:
         return
@@ -505,9 +556,11 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
 
     _h1_section(doc, results["h1"], figures)
 
+    _full_anova_section(doc, results)
+
     for factor, (hyp, label) in FACTOR_TITLES.items():
         res = results["mixed"][factor]
-        doc.h(2, f"{hyp}: difficulty × {label}")
+        doc.h(2, f"{hyp}: difficulty × {label} (the paper's two-way analysis)")
         if "skipped" in res:
             doc.p(f"Mixed ANOVA skipped: {res['skipped']}.")
         else:
