@@ -53,6 +53,7 @@ def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
         "h1",
         "full_anova",
         "full_anova_participants",
+        "glmm",
         "mixed",
         "likert",
         "exploratory",

@@ -99,6 +99,7 @@ def _nobody_left(export: StudyExport, excluded: Any) -> str:
 def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str, Any]:
     from cfteach.analysis.descriptives import descriptives
     from cfteach.analysis.factorial import full_anova
+    from cfteach.analysis.glmm import trial_glmm
 
     full = full_anova(stats.complete_cells(frames.cells))
     return {
@@ -106,6 +107,7 @@ def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str
         "full_anova_participants": full.get("participants", []),
         "full_anova_skipped": full.get("skipped"),
         "full_anova_detail": {k: v for k, v in full.items() if k not in ("terms", "participants")},
+        "glmm": trial_glmm(frames.tests),
         "descriptives": descriptives(frames),
         "icc": stats.icc_domains(frames),
         "h1": {

@@ -443,6 +443,53 @@ def _full_anova_section(doc: Doc, results: dict[str, Any]) -> None:
     doc.table(["Term", "Test" + (" (GG where within)" if rejected else ""), "p (GG)", "ηp²"], rows)
 
 
+def _glmm_term(term: str) -> str:
+    """'counterfactual:difficulty[high]' -> 'CF × difficulty (high vs mean)'."""
+    short = {
+        "counterfactual": "CF",
+        "feature_scaffolding": "FS",
+        "domain_position": "domain position",
+    }
+    parts = []
+    for part in term.split(":"):
+        if "[" in part:
+            name, lvl = part.rstrip("]").split("[")
+            parts.append(f"{name} ({lvl} vs mean)")
+        else:
+            parts.append(short.get(part, part))
+    return " × ".join(parts)
+
+
+def _glmm_section(doc: Doc, g: dict[str, Any] | None) -> None:
+    if not g:
+        return
+    doc.h(2, "Trial-level logistic mixed model")
+    if "skipped" in g:
+        doc.p(f"Not computed: {g['skipped']}.")
+        return
+    sd = g["random_effect_sd"]
+    doc.p(
+        f"Each of the {g['n_observations']} answers ({g['n_participants']} participants, "
+        f"{g['n_items']} test items) as one binary trial: {g['method']}; fixed effects "
+        "counterfactual × feature scaffolding × difficulty with domain and domain position "
+        f"as covariates. Random-intercept SDs (logit): participant {fmt_num(sd['participant'])}"
+        f", item {fmt_num(sd['item'])}. Coding: {g['coding']}. Wald 95% CIs."
+        + ("" if g.get("converged", True) else " **The fit did not converge.**")
+    )
+    doc.table(
+        ["Term", "OR", "95% CI", "p"],
+        [
+            [
+                _glmm_term(t["term"]),
+                fmt_num(t["odds_ratio"]),
+                f"[{fmt_num(t['ci_low'])}, {fmt_num(t['ci_high'])}]",
+                fmt_p(t["p"]),
+            ]
+            for t in g["terms"]
+        ],
+    )
+
+
 def _descriptives_section(doc: Doc, desc: dict[str, Any] | None) -> None:
     if not desc:
         return
@@ -557,6 +604,7 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
     _h1_section(doc, results["h1"], figures)
 
     _full_anova_section(doc, results)
+    _glmm_section(doc, results.get("glmm"))
 
     for factor, (hyp, label) in FACTOR_TITLES.items():
         res = results["mixed"][factor]
