@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
+from cfteach.analysis.effects import eta2_partial_ci
 from cfteach.analysis.io import DIFFICULTIES
 
 BETWEEN = ("counterfactual", "feature_scaffolding")
@@ -186,6 +187,7 @@ def _row(
         "p": p,
         "p_gg": None,
         "eta2_partial": ss / (ss + ss_err) if ss + ss_err > 0 else None,
+        "eta2_partial_ci95": eta2_partial_ci(f if math.isfinite(f) else None, df1, df2),
     }
     if eps is not None and WITHIN in term:
         row["eps_gg"] = eps

@@ -223,6 +223,15 @@ def difficulty_plot(frames: Frames, results: dict[str, Any], out_dir: Path) -> l
     return _save(fig, out_dir, "difficulty")
 
 
+def simple_effect_label(row: dict[str, Any]) -> str:
+    """The p printed over a difficulty: Holm across the difficulties, the one the report uses
+    (never the uncorrected t-test p)."""
+    p = row.get("p_holm_across")
+    if p is None:
+        return ""
+    return "p_Holm < .001" if p < 0.001 else f"p_Holm = {p:.3f}".replace("0.", ".", 1)
+
+
 def paper_bars(results: dict[str, Any], out_dir: Path) -> list[str]:
     """The paper's Fig. 5 form: grouped bars of proportion optimal by difficulty, one bar per
     counterfactual level, here with 95% CIs and the per-difficulty simple-effect p."""
@@ -248,18 +257,7 @@ def paper_bars(results: dict[str, Any], out_dir: Path) -> list[str]:
         ax.errorbar(pos, mean, yerr=[lo, hi], fmt="none", ecolor="k", capsize=3)
     for row in res["simple_effects"]["rows"]:
         j = DIFFICULTIES.index(row["difficulty"])
-        p = row["p_tukey"]
-        ax.text(
-            j,
-            1.02,
-            "p < .001"
-            if p is not None and p < 0.001
-            else f"p = {p:.3f}".replace("0.", ".", 1)
-            if p is not None
-            else "",
-            ha="center",
-            fontsize=8,
-        )
+        ax.text(j, 1.02, simple_effect_label(row), ha="center", fontsize=8)
     ax.set_xticks(x, DIFF_LABELS)
     ax.set_xlabel("Test difficulty")
     ax.set_ylabel("Proportion optimal (mean, 95% CI)")

@@ -114,6 +114,7 @@ def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str
             "rm_anova": stats.rm_anova_difficulty(frames),
             "posthoc": stats.posthoc_difficulty(frames, cfg.padjust, cfg.authors_tukey),
             "spearman": stats.spearman_confidence(frames),
+            "rm_corr": stats.rm_corr_confidence(frames),
         },
         "mixed": {f: stats.mixed_anova(frames, f) for f in stats.BETWEEN_FACTORS},
         "likert": stats.likert_tests(frames, cfg.padjust),

@@ -151,9 +151,10 @@ def _effects_table(doc: Doc, res: dict[str, Any]) -> None:
                 fmt_p(e["p"]),
                 fmt_p(e["p_gg"]) if e["p_gg"] is not None else "",
                 fmt_num(e["np2"], 3, lead=False),
+                _ci_text(e.get("np2_ci95"), 3),
             ]
         )
-    doc.table(["Source", "df1", "df2", "F", "p", "p (GG)", "ηp²"], rows)
+    doc.table(["Source", "df1", "df2", "F", "p", "p (GG)", "ηp²", "ηp² 95% CI"], rows)
 
 
 def _means_table(doc: Doc, factor: str, means: list[dict[str, Any]]) -> None:
@@ -221,14 +222,11 @@ def _mixed_section(doc: Doc, factor: str, label: str, res: dict[str, Any]) -> No
     doc.p(
         "Simple effects at each difficulty: Tukey HSD between groups on that difficulty's "
         "participant means"
-        + (
-            " (two groups: equal to Student's t-test); the last column adjusts across the "
-            "three difficulties (Holm)."
-            if two
-            else "; corrected within each difficulty, not across the three."
-        )
+        + (" (two groups: equal to Student's t-test)" if two else "")
+        + "; the last column adjusts each comparison across the three difficulties (Holm), "
+        "and that is the p to use."
     )
-    _tukey_table(doc, factor, res["simple_effects"]["rows"], with_diff=True, holm=two)
+    _tukey_table(doc, factor, res["simple_effects"]["rows"], with_diff=True, holm=True)
     if "overall_pairwise" in res:
         doc.p(
             "Overall pairwise comparison of conditions (Tukey HSD on each participant's "
@@ -301,6 +299,7 @@ def _h1_section(doc: Doc, h1: dict[str, Any], figures: dict[str, list[str]]) -> 
         doc.p(f"Spearman correlation of confidence with difficulty not computed: {sp['skipped']}.")
     else:
         _spearman_text(doc, sp)
+    _rm_corr_text(doc, h1.get("rm_corr"))
     if "confidence" in figures:
         doc.img(f"figures/{figures['confidence'][0]}", "Confidence by test difficulty")
 
@@ -341,7 +340,7 @@ def _posthoc_tables(doc: Doc, h1: dict[str, Any]) -> None:
             f"t({fmt_df(ph['rows'][0]['dof']) if ph['rows'] else ''})",
             "p (unc.)",
             f"p ({ph['padjust']})",
-            "Hedges g",
+            "Hedges g [95% CI]",
         ],
         [
             [
@@ -352,7 +351,7 @@ def _posthoc_tables(doc: Doc, h1: dict[str, Any]) -> None:
                 fmt_num(r["T"]),
                 fmt_p(r["p_unc"]),
                 fmt_p(r["p_corr"]),
-                fmt_num(r["hedges"]),
+                fmt_num(r["hedges"]) + " " + _ci_text(r.get("hedges_ci95"), 2),
             ]
             for r in ph["rows"]
         ],
@@ -378,6 +377,28 @@ def _posthoc_tables(doc: Doc, h1: dict[str, Any]) -> None:
                 for r in at["rows"]
             ],
         )
+
+
+def _ci_text(ci: list | None, digits: int) -> str:
+    if not ci or ci[0] is None:
+        return ""
+    return f"[{fmt_num(ci[0], digits, lead=False)}, {fmt_num(ci[1], digits, lead=False)}]"
+
+
+def _rm_corr_text(doc: Doc, rc: dict[str, Any] | None) -> None:
+    if not rc:
+        return
+    if "skipped" in rc:
+        doc.p(f"Repeated-measures correlation not computed: {rc['skipped']}.")
+        return
+    doc.p(
+        "At the right level, the repeated-measures correlation (each participant's three "
+        "cells as repeated measures of one person): "
+        f"r_rm({fmt_df(rc['dof'])}) = {fmt_num(rc['r'], 2, lead=False)}, 95% CI "
+        f"{_ci_text(rc['ci95'], 2)}, {fmt_p(rc['p'])}, {rc['n_participants']} participants. "
+        "The paper used the Spearman correlation above, which treats the 3N cells as "
+        "independent observations."
+    )
 
 
 def _spearman_text(doc: Doc, sp: dict[str, Any]) -> None:
@@ -438,9 +459,13 @@ def _full_anova_section(doc: Doc, results: dict[str, Any]) -> None:
                 fmt_F(df1, df2, t["F"], p),
                 fmt_p(t["p_gg"]) if t["p_gg"] is not None else "",
                 fmt_num(t["eta2_partial"], 3, lead=False),
+                _ci_text(t.get("eta2_partial_ci95"), 3),
             ]
         )
-    doc.table(["Term", "Test" + (" (GG where within)" if rejected else ""), "p (GG)", "ηp²"], rows)
+    doc.table(
+        ["Term", "Test" + (" (GG where within)" if rejected else ""), "p (GG)", "ηp²", "95% CI"],
+        rows,
+    )
 
 
 def _glmm_term(term: str) -> str:

@@ -18,6 +18,7 @@ import pingouin as pg
 from scipy import stats as sps
 
 from cfteach.analysis.aggregate import Frames
+from cfteach.analysis.effects import eta2_partial_ci, hedges_ci
 from cfteach.analysis.io import CONDITIONS, DIFFICULTIES, LIKERT_ITEMS
 
 BETWEEN_FACTORS = ("counterfactual", "feature_scaffolding", "condition")
@@ -219,6 +220,7 @@ def posthoc_difficulty(
                 "p_unc": _num(_get(r, "p_unc")),
                 "p_corr": _num(_get(r, "p_corr", _get(r, "p_unc"))),
                 "hedges": _num(r["hedges"]),
+                "hedges_ci95": hedges_ci(_num(r["hedges"]), n, n, paired=True),
             }
         )
     out: dict[str, Any] = {
@@ -279,6 +281,39 @@ def spearman_confidence(frames: Frames) -> dict[str, Any]:
     }
 
 
+def rm_corr_confidence(frames: Frames) -> dict[str, Any]:
+    """H1 at the right level: the repeated-measures correlation of confidence with
+    difficulty (pingouin.rm_corr; Bakdash & Marusich, 2017). It uses each participant's
+    three cells as repeated measures of one person, where the paper's Spearman treated the
+    3N cells as independent observations."""
+    test = "repeated-measures correlation (pingouin.rm_corr)"
+    c = frames.cells.dropna(subset=["confidence"])
+    if c.empty:
+        return skipped(test, "no confidence ratings in the export (the column is optional)")
+    per = c.groupby("participant_id", observed=True)["difficulty_code"].nunique()
+    c = c[c["participant_id"].isin(per.index[per >= 2])]
+    n = int(c["participant_id"].nunique())
+    if n < 3 or len(c) - n - 1 < 2:
+        return skipped(
+            test, f"needs at least 3 participants with two or more difficulties (have {n})"
+        )
+    r = pg.rm_corr(
+        data=c.assign(difficulty_code=c["difficulty_code"].astype(float)),
+        x="difficulty_code",
+        y="confidence",
+        subject="participant_id",
+    ).iloc[0]
+    return {
+        "test": test,
+        "r": _num(r["r"]),
+        "dof": _num(r["dof"]),
+        "p": _num(_get(r, "pval", _get(r, "p_val"))),
+        "ci95": _ci(_get(r, "CI95")),
+        "n_participants": n,
+        "n_observations": int(len(c)),
+    }
+
+
 def _levels(factor: str) -> list[Any]:
     return list(CONDITIONS) if factor == "condition" else [0, 1]
 
@@ -333,8 +368,8 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
 
     Simple effects: at each difficulty, Tukey HSD between the levels of `factor` on that
     difficulty's participant means (with two levels this is Student's t-test). These p are
-    corrected within a difficulty (Tukey) but not across the three difficulties; for the
-    two-level factors a Holm adjustment across the three is given as `p_holm_across`.
+    corrected within a difficulty (Tukey); `p_holm_across` adds Holm's correction across the
+    three difficulties for each pair (the family the simple-effects claim is about).
     """
     if factor not in BETWEEN_FACTORS:
         raise ValueError(f"factor must be one of {BETWEEN_FACTORS}, got {factor!r}")
@@ -369,15 +404,21 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
             "eps_gg": _num(r.get("eps")),
             "np2": _num(r.get("np2")),
         }
+        e = effects[key]
+        e["np2_ci95"] = eta2_partial_ci(e["F"], e["df1"], e["df2"])
     simple = []
     for d in DIFFICULTIES:
         sub = cells[cells["difficulty"] == d]
         for row in _tukey_rows(sub, "optimal", factor):
             simple.append({"difficulty": d, **row})
-    if simple and factor != "condition":  # one comparison per difficulty: Holm over the 3
-        ps = [s["p_tukey"] if s["p_tukey"] is not None else np.nan for s in simple]
+    # the same comparison at the three difficulties is one family: Holm over the 3
+    by_pair: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for s in simple:
+        by_pair.setdefault((s["A"], s["B"]), []).append(s)
+    for rows in by_pair.values():
+        ps = [s["p_tukey"] if s["p_tukey"] is not None else np.nan for s in rows]
         _, adj = pg.multicomp(ps, method="holm")
-        for s, a in zip(simple, adj, strict=True):
+        for s, a in zip(rows, adj, strict=True):
             s["p_holm_across"] = _num(a)
     subj = cells.groupby(["participant_id", factor], observed=True)["optimal"].mean()
     subj = subj.reset_index()
