@@ -54,6 +54,7 @@ def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
         "full_anova",
         "full_anova_participants",
         "glmm",
+        "ordinal",
         "mixed",
         "likert",
         "exploratory",

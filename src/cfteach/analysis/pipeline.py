@@ -100,6 +100,7 @@ def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str
     from cfteach.analysis.descriptives import descriptives
     from cfteach.analysis.factorial import full_anova
     from cfteach.analysis.glmm import trial_glmm
+    from cfteach.analysis.ordinal import ordinal_models
 
     full = full_anova(stats.complete_cells(frames.cells))
     return {
@@ -118,6 +119,7 @@ def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str
         },
         "mixed": {f: stats.mixed_anova(frames, f) for f in stats.BETWEEN_FACTORS},
         "likert": stats.likert_tests(frames, cfg.padjust),
+        "ordinal": ordinal_models(frames),
         "exploratory": stats.exploratory(frames),
     }
 

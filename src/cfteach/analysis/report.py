@@ -468,6 +468,33 @@ def _full_anova_section(doc: Doc, results: dict[str, Any]) -> None:
     )
 
 
+def _ordinal_section(doc: Doc, ordinal: dict[str, Any] | None) -> None:
+    if not ordinal:
+        return
+    doc.h(2, "Ordinal models of the ratings")
+    doc.p(
+        "Beside the paper's rank tests: every rating as one observation of a cumulative-logit "
+        "(proportional odds) model with cluster-robust SEs by participant. OR > 1: answers in "
+        "higher categories with the scaffolding (or at that difficulty vs the mean)."
+    )
+    rows = []
+    for name, res in ordinal.items():
+        label = name.replace("_", " ").capitalize()
+        if "skipped" in res:
+            rows.append([label, "not computed: " + res["skipped"], "", ""])
+            continue
+        for t in res["terms"]:
+            rows.append(
+                [
+                    f"{label} (N = {res['n_participants']}, {res['n_observations']} ratings)",
+                    _glmm_term(t["term"]),
+                    f"{fmt_num(t['odds_ratio'])} [{fmt_num(t['ci_low'])}, {fmt_num(t['ci_high'])}]",
+                    fmt_p(t["p"]),
+                ]
+            )
+    doc.table(["Rating", "Term", "OR [95% CI]", "p"], rows)
+
+
 def _glmm_term(term: str) -> str:
     """'counterfactual:difficulty[high]' -> 'CF × difficulty (high vs mean)'."""
     short = {
@@ -651,6 +678,7 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
         )
     if "likert" in figures:
         doc.img(f"figures/{figures['likert'][0]}", "Likert ratings by condition")
+    _ordinal_section(doc, results.get("ordinal"))
 
     doc.h(2, "Exploratory measures")
     for res in results["exploratory"].values():
