@@ -55,6 +55,7 @@ def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
         "full_anova_participants",
         "glmm",
         "ordinal",
+        "sensitivity",
         "mixed",
         "likert",
         "exploratory",

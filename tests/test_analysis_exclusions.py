@@ -276,3 +276,27 @@ def test_quality_flags_and_optional_speed_rule() -> None:
     assert table.reason.iloc[0] == "finished in 4.0 min < 5 min"
     with pytest.raises(ValueError, match="min_minutes must be positive"):
         ExclusionConfig(min_minutes=0)
+
+
+def test_mad_rule_catches_what_mean_minus_3_sd_misses() -> None:
+    """Two all-wrong participants among 30 inflate the SD so much that mean - 3 SD is below
+    zero; median - 3 MAD is not pulled down by them."""
+    rng = np.random.default_rng(0)
+    opt = (rng.random((30, 18)) < rng.uniform(0.45, 0.8, (30, 1))).astype(int)
+    opt[[4, 17]] = 0
+    reward = np.where(opt == 1, -1.0, -1.2)
+    ex = make_export(opt, reward)
+    base = dict(item_sd=None)
+    _, sd = apply_exclusions(ex, ExclusionConfig(**base))
+    assert sd.empty  # the SD rule misses both
+    prop = opt.mean(axis=1)
+    med = np.median(prop)
+    mad = 1.4826 * np.median(np.abs(prop - med))
+    want = {f"p{i:02d}" for i in np.flatnonzero(prop < med - 3 * mad)}
+    assert want == {"p04", "p17"}
+    _, rob = apply_exclusions(ex, ExclusionConfig(aggregate_mad=3.0, **base))
+    assert set(rob["participant_id"]) == want
+    assert set(rob["rule"]) == {"aggregate_mad_outlier"}
+    assert "median" in rob["reason"].iloc[0] and "3 MAD" in rob["reason"].iloc[0]
+    with pytest.raises(ValueError, match="aggregate_mad must be positive"):
+        ExclusionConfig(aggregate_mad=0)

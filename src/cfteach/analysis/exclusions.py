@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy import stats as sps
 
 from cfteach.analysis.io import (
     DIFFICULTIES,
@@ -30,6 +31,7 @@ class ExclusionConfig:
     require_complete_data: bool = True  # all tests, both Likert items in every domain
     expected_tests: int | None = None  # None: the design's 6 tests in each of their domains
     aggregate_sd: float | None = 3.0  # rule 1: proportion correct below mean - k SD
+    aggregate_mad: float | None = None  # robust rule 1: below median - k MAD (off by default)
     item_sd: float | None = 3.0  # rule 2: reward below item mean - k SD ...
     item_count_sd: float | None = 3.0  # ... on more items than mean + k SD of the counts
     item_counts_among_nonzero: bool = True  # authors: count stats over participants with >= 1
@@ -38,7 +40,7 @@ class ExclusionConfig:
     min_minutes: float | None = None  # exclude completions faster than this (off by default)
 
     def __post_init__(self) -> None:
-        for name in ("aggregate_sd", "item_sd", "item_count_sd"):
+        for name in ("aggregate_sd", "aggregate_mad", "item_sd", "item_count_sd"):
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise ValueError(f"{name} must be positive or None, got {v}")
@@ -95,6 +97,19 @@ def aggregate_outliers(tests: pd.DataFrame, k: float) -> pd.DataFrame:
     thr = mean - k * sd
     flagged = prop[prop < thr] if np.isfinite(thr) else prop.iloc[:0]
     return _flagged(flagged, thr, mean, sd)
+
+
+def aggregate_mad_outliers(tests: pd.DataFrame, k: float) -> pd.DataFrame:
+    """Participants whose proportion correct is below median - k MAD (MAD scaled by 1.4826,
+    so it estimates the SD for normal data). Unlike mean - k SD, two all-wrong participants
+    cannot pull the threshold below themselves. Columns as `aggregate_outliers` (mean = the
+    median, sd = the scaled MAD)."""
+    prop = tests.groupby("participant_id")["optimal"].mean().astype(float)
+    med = float(prop.median()) if len(prop) else float("nan")
+    mad = float(sps.median_abs_deviation(prop, scale="normal")) if len(prop) > 1 else float("nan")
+    thr = med - k * mad
+    flagged = prop[prop < thr] if np.isfinite(thr) and mad > 0 else prop.iloc[:0]
+    return _flagged(flagged, thr, med, mad)
 
 
 def item_outliers(
@@ -279,6 +294,22 @@ def apply_exclusions(
                 f"{agg.at[p['participant_id'], 'threshold']:.3f} (mean "
                 f"{agg.at[p['participant_id'], 'mean']:.3f} - {cfg.aggregate_sd:g} SD "
                 f"{agg.at[p['participant_id'], 'sd']:.3f})"
+            ),
+        )
+    if cfg.aggregate_mad is not None:
+        t = export.tests[
+            export.tests["participant_id"].isin(set(remaining["participant_id"]) | flagged)
+        ]
+        mad = aggregate_mad_outliers(t, cfg.aggregate_mad).set_index("participant_id")
+        flagged |= set(mad.index)
+        drop(
+            remaining["participant_id"].isin(mad.index),
+            "aggregate_mad_outlier",
+            lambda p: (
+                f"proportion correct {mad.at[p['participant_id'], 'value']:.3f} < "
+                f"{mad.at[p['participant_id'], 'threshold']:.3f} (median "
+                f"{mad.at[p['participant_id'], 'mean']:.3f} - {cfg.aggregate_mad:g} MAD "
+                f"{mad.at[p['participant_id'], 'sd']:.3f})"
             ),
         )
     if cfg.item_sd is not None and cfg.item_count_sd is not None:

@@ -45,6 +45,7 @@ def compute_results(
 
     from cfteach import __version__
     from cfteach.analysis import stats
+    from cfteach.analysis.sensitivity import sensitivity
 
     cfg = config or AnalysisConfig()
     kept, excluded = apply_exclusions(export, cfg.exclusions)
@@ -80,6 +81,7 @@ def compute_results(
             "conditions_missing": [c for c in CONDITIONS if not by_cond.get(c, 0)],
         },
         "exclusions": excluded.to_dict(orient="records"),
+        "sensitivity": sensitivity(export, cfg.exclusions),
         "quality_flags": quality_flags(kept.participants).to_dict(orient="records"),
         **results,
     }

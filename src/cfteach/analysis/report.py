@@ -468,6 +468,33 @@ def _full_anova_section(doc: Doc, results: dict[str, Any]) -> None:
     )
 
 
+def _sensitivity_section(doc: Doc, sens: dict[str, Any] | None) -> None:
+    if not sens:
+        return
+    doc.h(2, "Sensitivity to the exclusions")
+    doc.p(
+        "The H1 ANOVA and the full model again, without the outlier and manual exclusions and "
+        "with the robust outlier rule; " + sens["note"] + "."
+    )
+    terms = list(TERM_LABELS)
+    rows = []
+    for v in sens["variants"]:
+        h1 = v.get("h1") or {}
+        h1_txt = (
+            "n/a" if h1.get("skipped") or not h1 else fmt_F(h1["df1"], h1["df2"], h1["F"], h1["p"])
+        )
+        full = v.get("full_anova") or {}
+        rows.append(
+            [
+                v["name"],
+                str(v["n_retained"]),
+                h1_txt,
+                *(fmt_p(full[t]["p"]) if t in full else "n/a" for t in terms),
+            ]
+        )
+    doc.table(["Exclusions", "N", "H1", *(TERM_LABELS[t] for t in terms)], rows)
+
+
 def _ordinal_section(doc: Doc, ordinal: dict[str, Any] | None) -> None:
     if not ordinal:
         return
@@ -656,6 +683,7 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
     _h1_section(doc, results["h1"], figures)
 
     _full_anova_section(doc, results)
+    _sensitivity_section(doc, results.get("sensitivity"))
     _glmm_section(doc, results.get("glmm"))
 
     for factor, (hyp, label) in FACTOR_TITLES.items():

@@ -77,6 +77,13 @@ def analyze(
             rich_help_panel=_EXC,
         ),
     ] = 3.0,
+    aggregate_mad: Annotated[
+        float | None,
+        typer.Option(
+            help="Robust outlier rule: proportion correct below median - k MAD (default: off).",
+            rich_help_panel=_EXC,
+        ),
+    ] = None,
     item_sd: Annotated[
         float,
         typer.Option(
@@ -209,6 +216,7 @@ def analyze(
             drop_preview=not keep_preview,
             expected_tests=expected_tests,
             aggregate_sd=aggregate_sd or None,
+            aggregate_mad=aggregate_mad or None,
             item_sd=item_sd or None,
             item_count_sd=item_count_sd or None,
             item_counts_among_nonzero=not counts_among_all,
