@@ -137,6 +137,26 @@ def icc_domains(frames: Frames) -> dict[str, Any]:
     }
 
 
+def within_subject_ci(cells: pd.DataFrame, dv: str = "optimal", level: float = 0.95) -> dict:
+    """Cousineau-Morey within-subject CIs per difficulty: each participant's values are
+    centred on their own mean (plus the grand mean), the t-interval of those normalised
+    values is widened by sqrt(J / (J - 1)) (Morey 2008). Between-person differences, which
+    a within factor's tests remove, no longer inflate the bars."""
+    wide = cells.pivot_table(index="participant_id", columns="difficulty", values=dv, observed=True)
+    wide = wide.reindex(columns=list(DIFFICULTIES)).dropna()
+    n, j = wide.shape
+    out: dict[str, dict[str, float | None]] = {}
+    if n == 0:
+        return {d: {"mean": None, "half": None, "n": 0} for d in DIFFICULTIES}
+    norm = wide.sub(wide.mean(axis=1), axis=0) + float(wide.to_numpy().mean())
+    t = float(sps.t.ppf(0.5 + level / 2, n - 1)) if n > 1 else float("nan")
+    for d in DIFFICULTIES:
+        sd = float(norm[d].std(ddof=1)) if n > 1 else float("nan")
+        half = t * sd / math.sqrt(n) * math.sqrt(j / (j - 1)) if n > 1 else None
+        out[d] = {"mean": float(wide[d].mean()), "half": _num(half), "n": int(n)}
+    return out
+
+
 def difficulty_means(cells: pd.DataFrame, dv: str = "optimal") -> dict[str, Any]:
     """Mean with 95% CI of `dv` per difficulty (over participants)."""
     return {d: mean_ci(cells.loc[cells["difficulty"] == d, dv]) for d in DIFFICULTIES}

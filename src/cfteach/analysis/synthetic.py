@@ -11,7 +11,12 @@ drawn from a logistic model with a random intercept per participant:
 
 where `dev` are the paper's observed means (0.86, 0.71, 0.40 for low/medium/high) turned into
 centred logits and `sign` is -1/0/+1 for low/medium/high: counterfactual scaffolding helps on
-hard tests and hurts on easy ones, the interaction the paper reports (H2).
+hard tests and hurts on easy ones, the interaction the paper reports (H2). Two more terms,
+off by default, plant what only the full 2 x 2 x 3 model can see:
+`cf_fs_interaction * (2cf - 1)(2fs - 1)` (a crossover: no marginal effect of either factor)
+and `proposed_interaction * cf * fs * sign[difficulty]` (a difficulty effect that only the
+two scaffoldings together have: a three-way interaction, which the paper's separate models
+report as cf x difficulty and fs x difficulty).
 """
 
 from __future__ import annotations
@@ -47,6 +52,8 @@ class SyntheticConfig:
     difficulty_effect: float = 1.0  # multiplies the paper's difficulty spread; 0 = no effect
     interaction: float = 0.35  # logit shift of counterfactual conditions, +high / -low
     feature_effect: float = 0.0
+    cf_fs_interaction: float = 0.0  # logit x (+1 same scaffolding / -1 one of the two)
+    proposed_interaction: float = 0.0  # logit x (-1, 0, +1)[difficulty], proposed only
     subject_sd: float = 0.6  # SD of the participants' random intercepts (logit)
     effort_cf: float = 0.5  # extra mental effort (Likert points) with counterfactuals
     replay_cf: float = 0.08  # extra expected replays per demonstration with counterfactuals
@@ -210,6 +217,8 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                 + DOMAIN_SHIFT[dom]
                 + cfg.interaction * cf * SIGN[d_idx]
                 + cfg.feature_effect * fs
+                + cfg.cf_fs_interaction * (2 * cf - 1) * (2 * fs - 1)
+                + cfg.proposed_interaction * cf * fs * SIGN[d_idx]
             )
             correct = rng.random(m) < 1 / (1 + np.exp(-logit))
             gaps = rng.gamma(2.0, 0.12, m) * (8.0 if k in outliers else 1.0) + 0.02
