@@ -88,3 +88,12 @@ def test_effect_size_cis_in_results(frames) -> None:
     for r in S.posthoc_difficulty(frames)["paired"]["rows"]:
         lo, hi = r["hedges_ci95"]
         assert lo < r["hedges"] < hi
+
+
+def test_report_gives_the_gg_corrected_h1_test_when_sphericity_is_rejected() -> None:
+    from cfteach.analysis.report import _gg_sentence, fmt_F
+
+    rm = {"F": 10.0, "df1": 2.0, "df2": 100.0, "p": 1e-4, "p_gg": 3e-4, "eps_gg": 0.8}
+    assert _gg_sentence({**rm, "mauchly_p": 0.2}) == ""
+    text = _gg_sentence({**rm, "mauchly_p": 0.01})
+    assert fmt_F(1.6, 80.0, 10.0, 3e-4) in text and "F(1.60, 80) = 10.00" in text

@@ -311,7 +311,7 @@ def _rm_anova_text(doc: Doc, rm: dict[str, Any]) -> None:
         + f", η²G = {fmt_num(rm['ng2'], 2, lead=False)} (N = {rm['n_participants']} "
         f"participants, {rm['n_observations']} test responses). Mauchly's W = "
         f"{fmt_num(rm['mauchly_W'])}, {fmt_p(rm['mauchly_p'])}; Greenhouse-Geisser "
-        f"ε = {fmt_num(rm['eps_gg'])}, corrected {fmt_p(rm['p_gg'])}."
+        f"ε = {fmt_num(rm['eps_gg'])}, corrected {fmt_p(rm['p_gg'])}." + _gg_sentence(rm)
     )
     doc.table(
         ["Difficulty", "N", "M", "SD", "95% CI"],
@@ -325,6 +325,18 @@ def _rm_anova_text(doc: Doc, rm: dict[str, Any]) -> None:
             ]
             for d, m in rm["means"].items()
         ],
+    )
+
+
+def _gg_sentence(rm: dict[str, Any]) -> str:
+    """When Mauchly rejects sphericity, the GG-corrected test is the one to report."""
+    mp, eps = rm.get("mauchly_p"), rm.get("eps_gg")
+    if mp is None or mp >= 0.05 or eps is None:
+        return ""
+    return (
+        " Sphericity is rejected, so the test to report is the GG-corrected "
+        + fmt_F(rm["df1"] * eps, rm["df2"] * eps, rm["F"], rm["p_gg"])
+        + " (the paper reported the uncorrected df)."
     )
 
 
