@@ -35,6 +35,18 @@ def test_rm_corr_is_the_correlation_of_within_person_deviations(frames) -> None:
     assert res["dof"] == dof
     assert res["p"] == pytest.approx(2 * sps.t.sf(abs(t), dof), rel=1e-6)
     assert res["ci95"][0] < res["r"] < res["ci95"][1]
+    import pingouin as pg
+
+    ref = pg.rm_corr(
+        data=c.assign(difficulty_code=x),
+        x="difficulty_code",
+        y="confidence",
+        subject="participant_id",
+    ).iloc[0]
+    assert res["r"] == pytest.approx(ref["r"], rel=1e-9)
+    assert res["dof"] == ref["dof"]
+    assert res["p"] == pytest.approx(ref["pval"], rel=1e-6)
+    assert res["ci95"] == pytest.approx(list(ref["CI95"]), abs=0.006)  # pingouin rounds to .01
     # the paper's Spearman uses the same cells as if independent
     assert S.spearman_confidence(frames)["n"] == len(c)
 

@@ -32,8 +32,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy import linalg, sparse
+from scipy import sparse
 from scipy import stats as sps
+from scipy.sparse.linalg import splu
+from scipy.special import expit
 
 from cfteach.analysis.io import DIFFICULTIES
 
@@ -107,7 +109,7 @@ def trial_glmm(tests: pd.DataFrame, *, seed: int = 0) -> dict[str, Any]:
     y = tests["optimal"].astype(float).to_numpy()
     from threadpoolctl import threadpool_limits
 
-    with threadpool_limits(1):  # 285 x 285 solves: BLAS threads only contend (6x slower)
+    with threadpool_limits(1):  # small solves: BLAS threads only contend (6x slower)
         fit = laplace_glmm(y, exog, z, groups)
     k = exog.shape[1]
     terms = []
@@ -141,35 +143,39 @@ def trial_glmm(tests: pd.DataFrame, *, seed: int = 0) -> dict[str, Any]:
     }
 
 
-def _weighted_gram(a: sparse.csr_matrix, w: np.ndarray) -> np.ndarray:
-    """A' diag(w) A as a dense matrix (A is sparse: a few fixed columns + indicators)."""
-    return np.asarray((a.T @ sparse.diags(w) @ a).todense())
+def _hessian(a: sparse.csr_matrix, w: np.ndarray, penalty: np.ndarray) -> sparse.csc_matrix:
+    """A' diag(w) A + diag(penalty), kept sparse: the participant and item blocks are
+    diagonal, so a sparse LU scales to thousands of participants where a dense solve is
+    cubic."""
+    return (a.T @ sparse.diags(w) @ a + sparse.diags(penalty)).tocsc()
+
+
+def _logdet(m: sparse.csc_matrix) -> float:
+    """log det of a symmetric positive definite sparse matrix (from its LU factors)."""
+    return float(np.sum(np.log(np.abs(splu(m).U.diagonal()))))
 
 
 def _pirls(
     y: np.ndarray, a: sparse.csr_matrix, penalty: np.ndarray, start: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, float, bool]:
+) -> tuple[np.ndarray, sparse.csc_matrix, float, bool]:
     """Mode of the penalised log likelihood (Newton); returns (mode, Hessian, loglik, ok)."""
     g = start.copy()
+    step = np.full_like(g, np.inf)
     for _ in range(100):
-        eta = a @ g
-        mu = 1.0 / (1.0 + np.exp(-eta))
-        w = mu * (1 - mu)
+        mu = expit(a @ g)
         grad = a.T @ (y - mu) - penalty * g
-        hess = _weighted_gram(a, w) + np.diag(penalty)
-        step = linalg.solve(hess, grad, assume_a="pos")
+        step = splu(_hessian(a, mu * (1 - mu), penalty)).solve(grad)
         g = g + step
         if np.max(np.abs(step)) < 1e-9:
             break
     eta = a @ g
-    mu = 1.0 / (1.0 + np.exp(-eta))
-    w = mu * (1 - mu)
-    hess = _weighted_gram(a, w) + np.diag(penalty)
+    mu = expit(eta)
+    hess = _hessian(a, mu * (1 - mu), penalty)
     loglik = float(np.sum(y * eta - np.logaddexp(0.0, eta)))
     return g, hess, loglik, bool(np.max(np.abs(step)) < 1e-6)
 
 
-def laplace_glmm(y: np.ndarray, x: np.ndarray, z: np.ndarray, groups: np.ndarray) -> dict[str, Any]:
+def laplace_glmm(y: np.ndarray, x: np.ndarray, z: Any, groups: np.ndarray) -> dict[str, Any]:
     """Binomial GLMM with independent random intercepts (one SD per group of columns of z),
     by the Laplace approximation of the marginal likelihood (lme4's nAGQ = 0 scheme)."""
     from scipy.optimize import minimize
@@ -185,9 +191,8 @@ def laplace_glmm(y: np.ndarray, x: np.ndarray, z: np.ndarray, groups: np.ndarray
         g, hess, loglik, _ = _pirls(y, a, penalty, state["g"])
         state["g"] = g
         b = g[p:]
-        _, logdet_bb = np.linalg.slogdet(hess[p:, p:])
         # -2 x Laplace log marginal likelihood (profiled over the fixed effects)
-        return float(-2 * loglik + b @ (dinv * b) + logdet_bb - np.sum(np.log(dinv)))
+        return float(-2 * loglik + b @ (dinv * b) + _logdet(hess[p:, p:]) - np.sum(np.log(dinv)))
 
     res = minimize(
         objective,
@@ -197,7 +202,9 @@ def laplace_glmm(y: np.ndarray, x: np.ndarray, z: np.ndarray, groups: np.ndarray
     )
     dinv = np.exp(-2 * res.x)[groups]
     g, hess, _, ok = _pirls(y, a, np.r_[np.zeros(p), dinv], state["g"])
-    cov = np.linalg.inv(hess)[:p, :p]
+    unit = np.zeros((a.shape[1], p))
+    unit[np.arange(p), np.arange(p)] = 1.0
+    cov = splu(hess).solve(unit)[:p, :]  # the fixed-effect block of the inverse Hessian
     return {
         "beta": g[:p],
         "se": np.sqrt(np.diag(cov)),

@@ -94,22 +94,20 @@ def wilson(hits: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     p = hits / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return (float(centre - half), float(centre + half))
+    lo = 0.0 if hits == 0 else max(0.0, float(centre - half))  # exact at the ends, not
+    hi = 1.0 if hits == n else min(1.0, float(centre + half))  # -1e-17 or 0.99999...
+    return (lo, hi)
 
 
 def rejection_rates(ps: pd.DataFrame, alpha: float = 0.05) -> dict[str, dict[str, float]]:
-    """column -> {power, ci_low, ci_high, n} (share of studies with p < alpha)."""
+    """column -> {power, ci_low, ci_high, n} (share of studies with p < alpha; a test that
+    could not run counts as not significant)."""
     out = {}
+    n = len(ps)
     for col in ps.columns:
-        v = ps[col].dropna()
-        hits = int((v < alpha).sum())
-        lo, hi = wilson(hits, len(v))
-        out[col] = {
-            "power": hits / len(v) if len(v) else float("nan"),
-            "ci_low": lo,
-            "ci_high": hi,
-            "n": len(v),
-        }
+        hits = int((ps[col] < alpha).sum())
+        lo, hi = wilson(hits, n)
+        out[col] = {"power": hits / n if n else float("nan"), "ci_low": lo, "ci_high": hi, "n": n}
     return out
 
 
@@ -120,7 +118,7 @@ def power_curve(
     *,
     seed: int = 0,
     alpha: float = 0.05,
-    progress: bool = False,
+    progress: bool | None = False,
 ) -> pd.DataFrame:
     """Power vs N for each hypothesis in `HYPOTHESES` (rows: N x hypothesis)."""
     from tqdm import tqdm
@@ -128,7 +126,12 @@ def power_curve(
     base = SyntheticConfig(**(effects or {}))
     ns = list(ns)
     rows = []
-    with tqdm(total=len(ns) * n_sims, disable=not progress, desc="power", unit="study") as bar:
+    with tqdm(
+        total=len(ns) * n_sims,
+        disable=None if progress is None else not progress,
+        desc="power",
+        unit="study",
+    ) as bar:
         for n in ns:
             ps = []
             for i in range(n_sims):
@@ -137,14 +140,65 @@ def power_curve(
                 bar.update()
             rates = rejection_rates(pd.DataFrame(ps), alpha)
             for key, (col, label) in HYPOTHESES.items():
-                r = rates.get(
-                    col,
-                    {
-                        "power": float("nan"),
-                        "ci_low": float("nan"),
-                        "ci_high": float("nan"),
-                        "n": 0,
-                    },
-                )
+                r = rates.get(col) or {"power": 0.0, "ci_low": 0.0, "ci_high": 0.0, "n": n_sims}
                 rows.append({"n_participants": n, "hypothesis": key, "label": label, **r})
     return pd.DataFrame(rows)
+
+
+MIN_PARTICIPANTS = 8  # two per condition: below that the between tests cannot run
+
+
+def write_power_report(table: pd.DataFrame, out_dir: Any, alpha: float = 0.05) -> dict[str, str]:
+    """power.csv, power.md (N x hypothesis table) and power.png/.svg (curves with Wilson
+    95% intervals) in `out_dir`; returns name -> path."""
+    from pathlib import Path
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    table.to_csv(out / "power.csv", index=False, lineterminator="\n")
+    wide = table.pivot(index="n_participants", columns="hypothesis", values="power")
+    wide = wide[[h for h in HYPOTHESES if h in wide.columns]]
+    lines = [
+        f"Power (share of simulated studies with p < {alpha:g}) by number of participants",
+        "",
+        "| N | " + " | ".join(HYPOTHESES[h][1] for h in wide.columns) + " |",
+        "|---|" + "---|" * len(wide.columns),
+    ]
+    for n, row in wide.iterrows():
+        lines.append(f"| {n} | " + " | ".join(f"{100 * v:.0f}%" for v in row) + " |")
+    (out / "power.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    plt.rcParams["svg.hashsalt"] = "cfteach"
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for h in wide.columns:
+        sub = table[table["hypothesis"] == h].sort_values("n_participants")
+        ax.errorbar(
+            sub["n_participants"],
+            sub["power"],
+            yerr=[
+                (sub["power"] - sub["ci_low"]).clip(lower=0),
+                (sub["ci_high"] - sub["power"]).clip(lower=0),
+            ],
+            marker="o",
+            capsize=3,
+            label=HYPOTHESES[h][1],
+        )
+    ax.axhline(0.8, color="grey", lw=0.8, ls="--")
+    ax.set_ylim(0, 1)
+    ax.set_xlabel("Participants (completed, equal per condition)")
+    ax.set_ylabel(f"Power (p < {alpha:g}), Wilson 95% CI")
+    ax.legend(fontsize=7, loc="lower right")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    for ext in ("png", "svg"):
+        fig.savefig(
+            out / f"power.{ext}",
+            dpi=150,
+            metadata={"Date": None} if ext == "svg" else {"Software": None},
+        )
+    plt.close(fig)
+    return {k: str(out / f"power.{k}") for k in ("csv", "md", "png", "svg")}

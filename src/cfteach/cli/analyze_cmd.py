@@ -22,14 +22,20 @@ def _read_manual(path: Path) -> dict[str, str]:
 
     df = pd.read_csv(path, dtype=str, keep_default_na=False)
     if "participant_id" not in df.columns:
-        raise typer.BadParameter(f"{path}: missing column 'participant_id'")
+        raise ValueError(f"{path}: missing column 'participant_id'")
     reasons = df["reason"] if "reason" in df.columns else pd.Series(["manual"] * len(df))
     return {
         pid: (r or "manual exclusion") for pid, r in zip(df["participant_id"], reasons, strict=True)
     }
 
 
-def unexpected_error(exc: BaseException, export_dir: Path | None) -> str:
+def _usage_error(message: str) -> None:
+    """A one-line usage error (exit code 2), the same at any terminal width."""
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(code=2)
+
+
+def unexpected_error(exc: BaseException, what: str) -> str:
     """One line for an error we did not foresee: what failed, where, and how to report it.
 
     The innermost frame of cfteach's own code and the file/column words of the message are
@@ -40,10 +46,7 @@ def unexpected_error(exc: BaseException, export_dir: Path | None) -> str:
     frames = [f for f in traceback.extract_tb(exc.__traceback__) if "cfteach" in f.filename]
     where = f" in {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
     msg = " ".join(str(exc).split()) or "(no message)"
-    return (
-        f"analysis of {export_dir} failed{where}: {type(exc).__name__}: {msg} "
-        "(unexpected: please report it)"
-    )
+    return f"{what} failed{where}: {type(exc).__name__}: {msg} (unexpected: please report it)"
 
 
 def analyze(
@@ -179,9 +182,9 @@ def analyze(
     Writes report.md, report.html, results.json and figures/ to --out; see docs/analysis.md.
     """
     if (export_dir is None) == (synthetic is None):
-        raise typer.BadParameter("give either EXPORT_DIR or --synthetic N (exactly one)")
+        _usage_error("give either EXPORT_DIR or --synthetic N (exactly one)")
     if export_only and synthetic is None:
-        raise typer.BadParameter("--export-only needs --synthetic")
+        _usage_error("--export-only needs --synthetic")
     from cfteach.analysis import (
         AnalysisConfig,
         ExclusionConfig,
@@ -237,7 +240,7 @@ def analyze(
         typer.echo("error: " + " ".join(str(exc).split()), err=True)
         raise typer.Exit(code=2) from exc
     except Exception as exc:  # noqa: BLE001 - no traceback may reach the user (see docs)
-        typer.echo(f"error: {unexpected_error(exc, export_dir)}", err=True)
+        typer.echo(f"error: {unexpected_error(exc, f'analysis of {export_dir}')}", err=True)
         raise typer.Exit(code=1) from exc
     p = results["participants"]
     rm = results["h1"]["rm_anova"]
@@ -255,6 +258,69 @@ def analyze(
     typer.echo(f"report: {out / 'report.html'}  ({out / 'report.md'}, {out / 'results.json'})")
 
 
+def power(
+    n: Annotated[
+        list[int] | None,
+        typer.Option("--n", help="Numbers of participants to simulate (repeat the option)."),
+    ] = None,
+    sims: Annotated[int, typer.Option(help="Simulated studies per N.", min=1)] = 100,
+    seed: Annotated[int, typer.Option(help="Seed of the first simulated study.")] = 0,
+    alpha: Annotated[float, typer.Option(help="Significance level.", min=0.0, max=1.0)] = 0.05,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Directory for the table and plot.")] = (
+        Path("power")
+    ),
+    difficulty_effect: Annotated[
+        float, typer.Option(help="Scale of the paper's difficulty effect.", rich_help_panel=_SYN)
+    ] = 1.0,
+    interaction: Annotated[
+        float,
+        typer.Option(help="Counterfactual x difficulty (logit).", rich_help_panel=_SYN),
+    ] = 0.35,
+    feature_effect: Annotated[
+        float, typer.Option(help="Feature scaffolding main effect (logit).", rich_help_panel=_SYN)
+    ] = 0.0,
+    cf_fs_interaction: Annotated[
+        float,
+        typer.Option(help="Counterfactual x feature crossover (logit).", rich_help_panel=_SYN),
+    ] = 0.0,
+    proposed_interaction: Annotated[
+        float,
+        typer.Option(
+            help="Difficulty effect of the proposed condition only (logit; a three-way effect).",
+            rich_help_panel=_SYN,
+        ),
+    ] = 0.0,
+) -> None:
+    """Power vs N for each hypothesis, by simulating the design at planted effect sizes.
+
+    Defaults plant the paper's reported difficulty means and the synthetic generator's
+    counterfactual x difficulty interaction; writes power.md, power.csv and power.png/.svg.
+    """
+    from cfteach.analysis.power import MIN_PARTICIPANTS, power_curve, write_power_report
+
+    ns = sorted(set(n or [24, 48, 96, 144, 216]))
+    if ns[0] < MIN_PARTICIPANTS:
+        _usage_error(
+            f"--n must be at least {MIN_PARTICIPANTS} (two participants per condition), got {ns[0]}"
+        )
+    effects = {
+        "difficulty_effect": difficulty_effect,
+        "interaction": interaction,
+        "feature_effect": feature_effect,
+        "cf_fs_interaction": cf_fs_interaction,
+        "proposed_interaction": proposed_interaction,
+    }
+    try:
+        table = power_curve(ns, sims, effects, seed=seed, alpha=alpha, progress=None)
+        paths = write_power_report(table, out, alpha)
+    except Exception as exc:  # noqa: BLE001 - no traceback may reach the user
+        typer.echo(f"error: {unexpected_error(exc, 'power simulation')}", err=True)
+        raise typer.Exit(code=1) from exc
+    typer.echo(Path(paths["md"]).read_text(encoding="utf-8").rstrip())
+    typer.echo(f"wrote {paths['md']}, {paths['csv']}, {paths['png']}")
+
+
 def register(app: typer.Typer) -> None:
-    """Add `cfteach analyze` to the app."""
+    """Add `cfteach analyze` and `cfteach power` to the app."""
     app.command("analyze")(analyze)
+    app.command("power")(power)
