@@ -241,3 +241,43 @@ def test_nobody_left_names_the_rules(export_dir: Path, tmp_path: Path) -> None:
     assert res.exit_code == 2
     assert "no participant is left after the exclusions" in res.output
     assert "incomplete: 24" in res.output
+
+
+@pytest.mark.slow
+def test_random_corruptions_never_reach_the_user_as_a_traceback(
+    export_dir: Path, tmp_path: Path
+) -> None:
+    """Seeded corruptions of random cells (blank, junk, negative, huge, dropped rows, values
+    copied from another column or row): every run ends in a report (exit 0) or a named
+    one-line error (exit 2), never an unexpected error (exit 1) or a traceback."""
+    import random
+
+    rng = random.Random(13)
+    files = ["participants.csv", "test_responses.csv", "likert.csv", "demo_views.csv"]
+    for trial in range(25):
+        d = tmp_path / f"e{trial}"
+        shutil.copytree(export_dir, d)
+        fname = rng.choice(files)
+        df = pd.read_csv(d / fname, dtype=str, keep_default_na=False)
+        col = rng.choice(list(df.columns))
+        rows = rng.sample(range(len(df)), k=min(len(df), rng.choice([1, 3, 50])))
+        kind = rng.choice(["blank", "junk", "drop", "copy", "same"])
+        if kind == "blank":
+            df.loc[rows, col] = ""
+        elif kind == "junk":
+            df.loc[rows, col] = rng.choice(
+                ["x", "1e400", "nan", "-1", "3.5", "99999999999999999999"]
+            )
+        elif kind == "drop":
+            df = df.drop(index=rows)
+        elif kind == "copy":
+            df.loc[rows, col] = df.loc[rows, rng.choice(list(df.columns))].to_numpy()
+        else:
+            df.loc[rows, col] = df.loc[rows[0], col]
+        df.to_csv(d / fname, index=False)
+        res = CliRunner().invoke(app, ["analyze", str(d), "--out", str(d / "o"), "--no-figures"])
+        what = f"{fname} {kind} {col}: {res.output}"
+        assert res.exit_code in (0, 2), what
+        assert "Traceback" not in res.output, what
+        if res.exit_code == 2:
+            assert len([ln for ln in res.output.splitlines() if ln.strip()]) == 1, what

@@ -134,6 +134,12 @@ def _parse_column(df: pd.DataFrame, fname: str, col: str, kind: object, required
     if len(bad):
         raise ExportError(f"{fname}: column '{col}' has non-numeric value {bad.iloc[0]!r}")
     if kind in ("int", "bool"):
+        huge = num[~missing].abs() >= 2**53  # beyond exact floats (and int64 wraps around)
+        if huge.any():
+            raise ExportError(
+                f"{fname}: column '{col}' has an out-of-range integer "
+                f"{raw[~missing][huge].iloc[0]!r}"
+            )
         frac = num[~missing] % 1 != 0
         if frac.any():
             raise ExportError(
