@@ -179,6 +179,7 @@ def test_pilot_exports_get_a_report(export_dir: Path, tmp_path: Path, n: int) ->
     if n < 3:
         assert "needs at least 3 participants" in rm["skipped"]
         assert "H1: not computed" in res.output
+        assert "needs at least 3 participants" in r["h1"]["spearman"]["skipped"]
     else:
         assert rm["n_participants"] == 3 and rm["df2"] == 4
     md = (tmp_path / "o" / "report.md").read_text()

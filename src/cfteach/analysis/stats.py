@@ -281,11 +281,12 @@ def spearman_confidence(frames: Frames) -> dict[str, Any]:
     test = "Spearman rank correlation (pingouin.corr)"
     if c.empty:
         return skipped(test, "no confidence ratings in the export (the column is optional)")
-    if len(c) < 3 or c["confidence"].nunique() < 2 or c["difficulty_code"].nunique() < 2:
+    n = int(c["participant_id"].nunique())
+    if n < 3 or c["confidence"].nunique() < 2 or c["difficulty_code"].nunique() < 2:
         return skipped(
             test,
-            f"needs at least 3 participant x difficulty cells with varying confidence "
-            f"(have {len(c)})",
+            f"needs at least 3 participants and varying confidence (have {n} participant(s), "
+            f"{c['confidence'].nunique()} distinct value(s))",
         )
     res = pg.corr(c["difficulty_code"], c["confidence"], method="spearman")
     r = res.iloc[0]
