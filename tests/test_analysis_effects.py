@@ -109,3 +109,16 @@ def test_report_gives_the_gg_corrected_h1_test_when_sphericity_is_rejected() -> 
     assert _gg_sentence({**rm, "mauchly_p": 0.2}) == ""
     text = _gg_sentence({**rm, "mauchly_p": 0.01})
     assert fmt_F(1.6, 80.0, 10.0, 3e-4) in text and "F(1.60, 80) = 10.00" in text
+
+
+def test_mixed_interaction_sentence_uses_gg_when_sphericity_is_rejected(frames) -> None:
+    from cfteach.analysis.report import _within_test, fmt_F
+
+    inter = S.mixed_anova(frames, "counterfactual")["effects"]["interaction"]
+    assert inter["mauchly_p"] is not None
+    e = {**inter, "mauchly_p": 0.01, "eps_gg": 0.8}
+    assert _within_test(e).startswith(
+        fmt_F(e["df1"] * 0.8, e["df2"] * 0.8, e["F"], e["p_gg"]) + " (Greenhouse-Geisser"
+    )
+    e = {**inter, "mauchly_p": 0.5}
+    assert _within_test(e) == fmt_F(e["df1"], e["df2"], e["F"], e["p"])

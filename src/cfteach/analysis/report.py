@@ -205,13 +205,22 @@ def _mwu_sentence(name_x: str, name_y: str, r: dict[str, Any]) -> str:
     )
 
 
+def _within_test(e: dict[str, Any]) -> str:
+    """A within term's F: GG-corrected df and p when Mauchly's test rejects sphericity."""
+    mp, eps = e.get("mauchly_p"), e.get("eps_gg")
+    if mp is None or mp >= 0.05 or eps is None or e.get("p_gg") is None:
+        return fmt_F(e["df1"], e["df2"], e["F"], e["p"])
+    gg = fmt_F(e["df1"] * eps, e["df2"] * eps, e["F"], e["p_gg"])
+    return f"{gg} (Greenhouse-Geisser; sphericity rejected, {fmt_p(mp)})"
+
+
 def _mixed_section(doc: Doc, factor: str, label: str, res: dict[str, Any]) -> None:
     inter, betw = res["effects"]["interaction"], res["effects"]["between"]
     doc.p(
         f"Two-way mixed ANOVA (N = {res['n_participants']}; "
         + ", ".join(f"{_level(factor, k)}: {v}" for k, v in res["n_by_level"].items())
         + "). Interaction: "
-        + fmt_F(inter["df1"], inter["df2"], inter["F"], inter["p"])
+        + _within_test(inter)
         + f"; main effect of {label}: "
         + fmt_F(betw["df1"], betw["df2"], betw["F"], betw["p"])
         + "."

@@ -431,6 +431,7 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
             "p": _num(_get(r, "p_unc")),
             "p_gg": _num(_get(r, "p_GG_corr")),
             "eps_gg": _num(r.get("eps")),
+            "mauchly_p": _num(_get(r, "p_spher")),
             "np2": _num(r.get("np2")),
         }
         e = effects[key]
