@@ -110,3 +110,14 @@ def test_difficulty_bars_use_within_subject_cis(drawn) -> None:
     segs = caps[0].get_segments()
     for seg, d in zip(segs, DIFFICULTIES, strict=True):
         assert (seg[1][1] - seg[0][1]) / 2 == pytest.approx(ci[d]["half"], rel=1e-9)
+
+
+def test_report_uses_readable_condition_names(tmp_path: Path) -> None:
+    from cfteach.analysis.report import write_report
+
+    r, _ = compute_results(generate(SyntheticConfig(n_participants=24, seed=3)))
+    write_report(r, {}, tmp_path)
+    md = (tmp_path / "report.md").read_text()
+    assert "Counterfactual + feature scaffolding: 6" in md  # retained per condition
+    for raw in ("proposed:", "counterfactual_only:", "| proposed |"):
+        assert raw not in md.split("## Descriptives")[1], raw

@@ -10,6 +10,7 @@ import html
 from pathlib import Path
 from typing import Any
 
+from cfteach.analysis.descriptives import CONDITION_LABELS
 from cfteach.analysis.io import DIFFICULTIES, LIKERT_ITEMS
 
 FACTOR_TITLES = {
@@ -17,7 +18,8 @@ FACTOR_TITLES = {
     "feature_scaffolding": ("H3", "feature scaffolding"),
     "condition": ("H4", "condition (4 levels)"),
 }
-LEVEL_NAMES = {
+LEVEL_NAMES: dict[str, dict[str, str]] = {
+    "condition": CONDITION_LABELS,
     "counterfactual": {"0": "no counterfactual", "1": "counterfactual"},
     "feature_scaffolding": {"0": "no feature scaffolding", "1": "feature scaffolding"},
 }
@@ -269,15 +271,17 @@ def _likert_section(doc: Doc, factor: str, lk: dict[str, Any]) -> None:
                 f"{name}: Kruskal-Wallis H({fmt_df(kw['df'])}) = {fmt_num(kw['H'])}, "
                 f"{fmt_p(kw['p'])}, ε² = {fmt_num(kw['epsilon_sq'], 3, lead=False)}, "
                 f"N = {kw['n']}; medians "
-                + ", ".join(f"{c} {fmt_num(m, 1)}" for c, m in kw["medians"].items())
+                + ", ".join(
+                    f"{_level('condition', c)} {fmt_num(m, 1)}" for c, m in kw["medians"].items()
+                )
                 + "."
             )
             doc.table(
                 ["A", "B", "U", "p (unc.)", f"p ({lk['padjust']})", "Mdn A", "Mdn B"],
                 [
                     [
-                        r["A"],
-                        r["B"],
+                        _level("condition", r["A"]),
+                        _level("condition", r["B"]),
                         fmt_num(r["U"], 1),
                         fmt_p(r["p"]),
                         fmt_p(r["p_corr"]),
@@ -652,7 +656,11 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
     doc.h(2, "Participants and exclusions")
     doc.p(
         f"{part['n_sessions']} sessions in the export; {part['n_retained']} participants "
-        f"retained ({', '.join(f'{c}: {n}' for c, n in part['retained_by_condition'].items())})."
+        "retained ("
+        + ", ".join(
+            f"{_level('condition', c)}: {n}" for c, n in part["retained_by_condition"].items()
+        )
+        + ")."
     )
     exc = results["exclusions"]
     if exc:
