@@ -202,3 +202,58 @@ def test_bad_results_are_named(tmp_path):
         build_report(tmp_path, bad, progress=False)
     with pytest.raises(ValueError, match="nothing to report"):
         build_report(tmp_path, {}, progress=False)
+
+
+def test_report_explains_itself(built):
+    _, index = built
+    html = index.read_text(encoding="utf-8")
+    text = " ".join(re.sub(r"<[^>]+>", " ", html).split())
+    # a glossary defines the words the captions use
+    for word in ("gain", "masked", "overlap", "BEC′", "area (sr)", "belief"):
+        assert re.search(rf"<dt>{re.escape(word)}</dt><dd>\w", html), word
+    # the belief the tests use is named as the file's posterior, not "post-teaching"
+    assert "post-teaching" not in text
+    assert "[beliefs] posterior" in text and "the same for every condition" in text
+    # features by their labels (from the domain file), masked feature too
+    assert "Skateboard ( skateboard_step ) =" in text
+    assert "masked: Path" in text
+    # counts agree with their nouns
+    assert "1 optimal play " in text and "1 optimal plays" not in text
+    assert "1 action " in text and " 1 actions" not in text
+    assert "1 training demonstration excluded" in text
+
+
+def test_sphere_labels_stay_clear_of_stubs_star_and_each_other():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from cfteach.render import belief as bel
+
+    for w in ([-0.6, 0.74, -0.21], W, [0.3, -0.2, -0.93], [-0.02, -0.03, -1.0]):
+        fig = bel.plot_belief_sphere([[0, 0, -1]], w_true=w, feature_names=FEATURES,
+                                     resolution=16)
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        to_fig = fig.transFigure.inverted()
+        boxes = {t.get_text(): t.get_window_extent(renderer).transformed(to_fig)
+                 for t in fig.texts}
+        assert {"+" + f for f in FEATURES} | {"w*"} <= set(boxes)
+        for name, b in boxes.items():
+            assert b.x0 >= 0 and b.x1 <= 1 and b.y0 >= 0 and b.y1 <= 1, name  # not cut off
+        items = list(boxes.items())
+        for i, (n1, b1) in enumerate(items):
+            for n2, b2 in items[i + 1:]:
+                assert not bel._overlaps(b1, b2), (n1, n2)
+        # the stubs (axis lines from 1.0 to 1.25) do not run through their names
+        ax = fig.axes[0]
+        for k, f in enumerate(FEATURES):
+            a = np.eye(3)[k]
+            p0, p1 = bel._fig_xy(fig, ax, 1.0 * a), bel._fig_xy(fig, ax, 1.25 * a)
+            b = boxes["+" + f]
+            inside = [b.x0 < x < b.x1 and b.y0 < y < b.y1
+                      for x, y in (p0 + (p1 - p0) * s for s in np.linspace(0, 1, 21))]
+            assert not any(inside), f
+        # "w*" is beside its star, not on it
+        star = bel._fig_xy(fig, ax, np.asarray(w) / np.linalg.norm(w))
+        b = boxes["w*"]
+        assert not (b.x0 < star[0] < b.x1 and b.y0 < star[1] < b.y1)

@@ -129,6 +129,9 @@ def demo_set(domain: Domain, profile: str = "default") -> DemoSet:
 
 
 def _build(domain: Domain, profile: str) -> DemoSet:
+    from cfteach.domains.check import require_sound
+
+    require_sound(domain)  # named errors (unreachable goal, reward loop, ...) before planning
     batch = compile_domain(domain)
     w = np.asarray(domain.weights, dtype=float)
     vals = value_iteration(batch, w[None], method=VI_METHOD[profile])

@@ -12,6 +12,10 @@ import typer
 
 
 def _summary(dom: Any) -> dict[str, Any]:
+    from cfteach.domains.size import estimate_size
+
+    est = estimate_size(dom)  # exact when cheap to count, else from a sample (no minute-long
+    # enumeration of every instance of a big domain just to list it)
     return {
         "name": dom.name,
         "title": dom.title,
@@ -27,8 +31,9 @@ def _summary(dom: Any) -> dict[str, Any]:
         "prior": dom.prior.tolist(),
         "posterior": dom.posterior.tolist(),
         "n_bits": dom.n_bits,
-        "instances": len(dom.instances()),
-        "demonstrations": dom.n_demonstrations(),
+        "instances": est.instances,
+        "demonstrations": est.demonstrations,
+        "demonstrations_exact": est.exact,
     }
 
 
@@ -47,15 +52,20 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """List domains: features, weights, number of instances and of demonstrations."""
         from cfteach import domains
+        from cfteach.cli._common import fail
+        from cfteach.domains.check import errors_of, static_findings
 
         names = paths or domains.builtin_names()
         rows = []
         for name in names:
             try:
-                rows.append(_summary(domains.load(name)))
+                dom = domains.load(name)
             except ValueError as exc:  # DomainFileError is a ValueError
-                typer.echo(f"Error: {exc}", err=True)
-                raise typer.Exit(2) from None
+                fail(str(exc))
+            errors = errors_of(static_findings(dom))
+            if errors:
+                fail(errors[0].message + " (`cfteach check` runs every check)")
+            rows.append(_summary(dom))
         if as_json:
             typer.echo(json.dumps(rows, indent=2))
             return
@@ -67,7 +77,7 @@ def register(app: typer.Typer) -> None:
                                                        strict=True)),
                 "[" + ", ".join(f"{w:.3f}" for w in r["weights"]) + "]",
                 str(r["instances"]),
-                str(r["demonstrations"]),
+                ("" if r["demonstrations_exact"] else "~") + str(r["demonstrations"]),
             )
             for r in rows
         ]

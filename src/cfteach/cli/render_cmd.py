@@ -11,6 +11,8 @@ from typing import Annotated, Any
 
 import typer
 
+from cfteach.cli._common import check_out_dir, check_out_file, fail
+
 render_app = typer.Typer(
     help="Draw grids, demonstrations and beliefs (SVG, PNG, GIF or text).",
     no_args_is_help=True,
@@ -20,8 +22,34 @@ _FORMATS = ("gif", "png", "svg", "txt")
 
 
 def _fail(message: str) -> None:
-    typer.echo(f"Error: {message}", err=True)
-    raise typer.Exit(2)
+    fail(message)
+
+
+def _instance_key(dom: Any, env_code: str) -> Any:
+    """Bits (exactly the domain's number) or an index; a bit string of the wrong length is
+    named as such rather than read as a large index."""
+    n_bits, n = dom.n_bits, 2 ** dom.n_bits
+    if len(env_code) == n_bits and set(env_code) <= {"0", "1"}:
+        return tuple(int(c) for c in env_code)
+    if set(env_code) <= {"0", "1"} and len(env_code) > 1 and (
+            env_code.startswith("0") or int(env_code) >= n):
+        raise ValueError(f"env code {env_code!r} has {len(env_code)} bits; {dom.name} "
+                         f"instances have {n_bits} (e.g. {'0' * n_bits}), or give an "
+                         f"index 0..{n - 1}")
+    if env_code.isdigit():
+        return int(env_code)
+    raise ValueError(f"env code {env_code!r}: give {n_bits} bits (e.g. {'0' * n_bits}) "
+                     f"or an instance index 0..{n - 1}")
+
+
+def _parse_state(inst: Any, text: str) -> Any:
+    example = json.dumps(inst.state_to_json(inst.initial_state))
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"--state {text!r} is not JSON ({exc.msg}); expected an object "
+                         f"like {example}") from None
+    return inst.state_from_json(data)
 
 
 def _read_json(path: Path) -> dict[str, Any]:
@@ -54,20 +82,15 @@ def state_cmd(
     """Draw one state of one instance."""
     from cfteach import domains, render
 
+    check_out_file(out)
+    if out is not None and out.suffix.lower() not in (".svg", ".png", ".txt"):
+        _fail(f"--out {out}: give a .svg, .png or .txt file name")
+    if cell_px < 1:
+        _fail(f"--cell-px must be at least 1, got {cell_px}")
     try:
         dom = domains.load(domain)
-        n_bits = dom.n_bits
-        if len(env_code) == n_bits and set(env_code) <= {"0", "1"}:
-            key: Any = tuple(int(c) for c in env_code)
-        elif env_code.isdigit():
-            key = int(env_code)
-        else:
-            raise ValueError(
-                f"env code {env_code!r}: give {n_bits} bits (e.g. {'0' * n_bits}) "
-                "or an instance index"
-            )
-        inst = dom.instance(key)
-        st = inst.initial_state if state is None else inst.state_from_json(json.loads(state))
+        inst = dom.instance(_instance_key(dom, env_code))
+        st = inst.initial_state if state is None else _parse_state(inst, state)
         if out is None:
             typer.echo(render.text_of(inst, st))
             typer.echo(render.legend(render.layout_from_instance(inst)))
@@ -97,6 +120,7 @@ def demos_cmd(
         _fail(f"unknown format {fmt!r}; use one of {', '.join(_FORMATS)}")
     if still not in ("first", "last"):
         _fail(f"--still must be 'first' or 'last', got {still!r}")
+    check_out_dir(out)
     data = _read_json(file)
     if "demos" in data:
         items = [(f"demo{k}", d) for k, d in enumerate(data["demos"], start=1)]
@@ -110,13 +134,25 @@ def demos_cmd(
         _fail(f"{file}: has neither 'demos' nor 'tests'")
     try:
         dom = domains.load(domain or data["domain"])
-    except (ValueError, FileNotFoundError) as exc:
+    except (ValueError, FileNotFoundError, KeyError) as exc:
         _fail(str(exc))
+    if data.get("domain") not in (None, dom.name):
+        _fail(f"{file} holds {data['domain']!r} demonstrations but --domain {domain} is "
+              f"{dom.name!r}; give the domain (or file) the JSON was made with")
     out.mkdir(parents=True, exist_ok=True)
     for name, demo in items:
-        layout = render.layout_from_instance(dom.instance(int(demo["env_index"])))
+        try:
+            inst = dom.instance(int(demo["env_index"]))
+            for st in demo["states"]:  # a JSON made for another domain fails here
+                inst.state_from_json(st)
+        except (ValueError, KeyError, IndexError, TypeError) as exc:
+            _fail(f"{file}: {name}: does not fit domain {dom.name!r} ({exc})")
+        layout = render.layout_from_instance(inst)
         path = out / f"{name}.{fmt}"
-        render.save_demo(layout, demo["states"], path, still=still)
+        try:
+            render.save_demo(layout, demo["states"], path, still=still)
+        except ValueError as exc:
+            _fail(f"{file}: {name}: {exc}")
     typer.echo(f"Wrote {len(items)} pictures to {out}")
 
 
@@ -134,6 +170,7 @@ def belief_cmd(
     """Draw a belief on the sphere: a curriculum's final belief or a test set's belief."""
     from cfteach.render import belief as bel
 
+    check_out_file(out)
     data = _read_json(file)
     bec = None
     if "final_belief" in data:
@@ -149,14 +186,16 @@ def belief_cmd(
     else:
         _fail(f"{file}: has neither 'final_belief' nor 'belief'")
     try:
+        from cfteach.report.build import feature_labels
+
         fig = bel.plot_belief_sphere(
             region,
             bec=bec,
             w_true=data["weights"],
-            feature_names=data["feature_names"],
+            feature_names=feature_labels(str(data["domain"]), data["feature_names"]),
             title=title,
         )
-    except ValueError as exc:
+    except (ValueError, KeyError, TypeError) as exc:
         _fail(str(exc))
     bel.save_figure(fig, out)
     typer.echo(f"Wrote {out}")

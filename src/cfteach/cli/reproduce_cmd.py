@@ -38,9 +38,15 @@ def reproduce(
     no_report: Annotated[
         bool, typer.Option("--no-report", help="Write the JSON files only.")
     ] = False,
+    force: Annotated[
+        bool, typer.Option("--force", help="Go on even when a domain's size estimate exceeds "
+                                           "the free memory.")
+    ] = False,
 ) -> None:
     """Run every condition and test selection for the domains; write JSON, pictures and a
     self-contained index.html report."""
+    from cfteach.bec.demos import PROFILES
+    from cfteach.cli._common import check_out_dir, did_you_mean, fail, load_domain
     from cfteach.report import build_report, load_meta, load_results
     from cfteach.report.reproduce import reproduce as run
 
@@ -52,6 +58,14 @@ def reproduce(
         index = build_report(out, results, meta=load_meta(out))
         typer.echo(f"Report: {index}")
         return
+    if profile not in PROFILES:
+        fail(f"--profile: unknown value {profile!r} (allowed: {', '.join(PROFILES)})"
+             + did_you_mean(profile, PROFILES))
+    if seed < 0:
+        fail(f"--seed must be 0 or more, got {seed}")
+    check_out_dir(out)
+    for name in split_list(domains) or []:  # every check before hours of work
+        load_domain(name, force=force, sphere=not no_report)
     try:
         results, index = run(out, split_list(domains), profile=profile, seed=seed,
                              report=not no_report)

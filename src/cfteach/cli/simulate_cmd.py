@@ -55,14 +55,20 @@ def register(app: typer.Typer) -> None:
             help="closed_loop teacher settings as field=value (comma-separated or repeated), "
                  "e.g. p_learn=0.7,max_items=30; see docs/closed-loop.md."),
         out: Path = typer.Option(Path("out/simulate"), "--out", "-o", help="Output folder."),
+        force: bool = typer.Option(False, "--force", help="Go on even when a domain's size "
+                                   "estimate exceeds the free memory."),
     ) -> None:
         """Teach simulated learners every condition's curriculum and test them: proportion
         optimal by difficulty x condition (95% CIs) and the H1 overlap-correctness
         correlation, as JSON, CSV and plots."""
         import sys
 
+        from cfteach.cli._common import check_out_dir, load_domain
         from cfteach.simulate.sweep import run_sweep
 
+        check_out_dir(out)  # before the work: a bad --out must not cost the whole sweep
+        for name in split_list(domains) or []:  # the domain checks and the size guard
+            load_domain(name, force=force)
         try:
             settings = _teacher_settings(split_list(teacher))
             result = run_sweep(
@@ -73,7 +79,7 @@ def register(app: typer.Typer) -> None:
                 scheduler=scheduler, chunk_learners=chunk, progress=sys.stderr.isatty(),
                 teacher=settings)
         except (ValueError, FileNotFoundError, ImportError, ConnectionError) as err:
-            typer.echo(f"error: {err}", err=True)
+            typer.echo(f"Error: {err}", err=True)
             raise typer.Exit(2) from None
         summ = result.write(out)
         _print_summary(summ)

@@ -80,8 +80,12 @@ def init(
     teacher: list[str] = typer.Option(None, "--teacher", help="closed_loop teacher settings "
                                       "as field=value (comma-separated or repeated), e.g. "
                                       "max_items=12; see docs/closed-loop.md."),
+    force: bool = typer.Option(False, "--force", help="Replace study.json even when the "
+                               "folder's study.db holds sessions; teach a domain whose size "
+                               "estimate exceeds the free memory."),
 ) -> None:
     """Write a study folder (study.json) from curricula and test sets."""
+    from cfteach.cli._common import check_out_dir, fail, study_sessions
     from cfteach.cli.simulate_cmd import _teacher_settings
     from cfteach.study.build import (
         check_conditions,
@@ -91,10 +95,25 @@ def init(
         toy_sources,
     )
 
+    check_out_dir(out)
+    n_sessions = study_sessions(f"sqlite:///{out / 'study.db'}")
+    if n_sessions and not force:
+        fail(f"--out {out}: its study.db holds {n_sessions} session(s) of participants; "
+             "replacing study.json would detach them from their study: choose another "
+             "folder, or pass --force")
+
     names = [d.strip() for d in domains.split(",") if d.strip()]
     try:
         chosen = check_conditions(conditions.split(","))
         settings = _teacher_settings([x for t in teacher or [] for x in t.split(",") if x])
+    except ValueError as e:
+        fail(str(e))
+    if not (toy or preview or source is not None):  # teaching here: check domains first
+        from cfteach.cli._common import load_domain
+
+        for name in names:
+            load_domain(name, force=force)
+    try:
         if toy:
             sources = toy_sources()
         elif preview:
@@ -110,8 +129,7 @@ def init(
                           consent_html=_read_consent(consent), conditions=chosen,
                           teacher=settings)
     except ValueError as e:
-        typer.echo(f"error: {e}", err=True)
-        raise typer.Exit(2) from None
+        fail(str(e))
     typer.echo(f"wrote {path}")
 
 
@@ -122,7 +140,15 @@ def export(
     include_previews: bool = typer.Option(False, help="Also export preview/test sessions."),
 ) -> None:
     """Write tidy CSVs (participants, test responses, Likert, demo views) + dictionary."""
+    from cfteach.cli._common import check_out_dir, fail, sqlite_path, study_sessions
     from cfteach.study.export import export_csv
+
+    check_out_dir(out)
+    path = sqlite_path(db)
+    if path is not None and not path.is_file():
+        fail(f"--db {db}: no database file at {path} (export never creates one)")
+    if study_sessions(db) is None:
+        fail(f"--db {db}: not a cfteach study database (no sessions table)")
 
     counts = export_csv(db, out, include_previews=include_previews)
     for name, n in counts.items():
@@ -139,6 +165,10 @@ def progress(
     from cfteach.study.db import make_engine, upgrade
     from cfteach.study.service import StudyService
 
+    if not (study / "study.json").is_file():
+        typer.echo(f"Error: no study at {study / 'study.json'}: create one with "
+                   "`cfteach study init`", err=True)
+        raise typer.Exit(2)
     engine = make_engine(db or f"sqlite:///{study / 'study.db'}")
     upgrade(engine)
     p = StudyService(engine, load_study(study)).progress()
@@ -198,6 +228,10 @@ def serve(
     from cfteach.study.livesrv import server_config
     from cfteach.study.server import create_app
 
+    if not (study / "study.json").is_file():
+        typer.echo(f"Error: no study at {study / 'study.json'}: create one with "
+                   f"`cfteach study init --out {study}`", err=True)
+        raise typer.Exit(2)
     token = researcher_token or secrets.token_urlsafe(16)
     try:
         app = create_app(study, db, researcher_token=token,

@@ -13,25 +13,34 @@ from typing import Annotated, Any
 
 import typer
 
+from cfteach.cli._common import check_out_file, check_positive, did_you_mean, fail, load_domain
+
 _PROFILE_HELP = "reference: the authors' deterministic choices; default: ours (docs/profiles.md)."
 _UNBOUNDED_HELP = ("Human models with unbounded values: skip (give nothing, the reference and "
                    "its profile) or loops (their positive loops are not rewarding; default "
                    "profile).")
 
 
-def _fail(msg: str) -> None:
-    typer.echo(f"Error: {msg}", err=True)
-    raise typer.Exit(2)
+_FORCE_HELP = "Go on even when the size estimate exceeds the free memory."
 
 
 def _emit(data: dict[str, Any], out: Path | None) -> None:
     text = json.dumps(data, indent=2)
     if out is None:
         typer.echo(text)
-    else:
+        return
+    try:
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(text + "\n")
-        typer.echo(f"wrote {out}", err=True)
+    except OSError as exc:
+        fail(f"--out {out}: cannot write: {exc.strerror or exc}", code=1)
+    typer.echo(f"wrote {out}", err=True)
+
+
+def _check_choice(value: str, choices: tuple[str, ...], option: str) -> None:
+    if value not in choices:
+        fail(f"{option}: unknown value {value!r} (allowed: {', '.join(choices)})"
+             + did_you_mean(value, choices))
 
 
 def _show(cur_json: dict[str, Any], domain: Any) -> None:
@@ -76,17 +85,38 @@ def register(app: typer.Typer) -> None:
                                                  help="Write the JSON here.")] = None,
         show: Annotated[bool, typer.Option(
             help="Also draw each demonstration as text (on stderr).")] = False,
+        force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
     ) -> None:
         """Choose the demonstrations one study condition shows; print the curriculum JSON."""
-        from cfteach.teaching import teach
+        from cfteach.bec import UNBOUNDED_RULES
+        from cfteach.bec.demos import PROFILES
+        from cfteach.teaching import CONDITIONS, teach
+        from cfteach.teaching.common import check_condition
 
+        if condition == "closed_loop":  # a known condition, but no fixed curriculum
+            try:
+                check_condition(condition)
+            except ValueError as exc:
+                fail(f"--condition: {exc}")
+        _check_choice(condition, CONDITIONS, "--condition")
+        _check_choice(profile, PROFILES, "--profile")
+        if unbounded_models is not None:
+            _check_choice(unbounded_models, tuple(UNBOUNDED_RULES), "--unbounded-models")
+        check_positive(max_demos, "--max-demos")
+        check_positive(human_models, "--human-models")
+        if seed < 0:
+            fail(f"--seed must be 0 or more, got {seed}")
+        if proportion is not None and not 0 < proportion <= 1:
+            fail(f"--proportion must lie in (0, 1], got {proportion}")
+        check_out_file(out)
+        dom = load_domain(domain, force=force)
         try:
-            cur = teach(domain, condition, profile=profile, seed=seed,
+            cur = teach(dom, condition, profile=profile, seed=seed,
                         human_models=human_models, max_demos=max_demos,
                         proportion=proportion, unbounded_models=unbounded_models,
                         progress=sys.stderr.isatty())
         except (ValueError, TypeError) as exc:
-            _fail(str(exc))
+            fail(str(exc))
         data = cur.to_json()
         _emit(data, out)
         if show:
@@ -110,24 +140,39 @@ def register(app: typer.Typer) -> None:
             help=_UNBOUNDED_HELP)] = None,
         out: Annotated[Path | None, typer.Option("--out", "-o",
                                                  help="Write the JSON here.")] = None,
+        force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
     ) -> None:
         """Pick low / medium / high difficulty tests (Algorithm 2); print the tests JSON."""
+        from cfteach.bec import UNBOUNDED_RULES
+        from cfteach.bec.demos import PROFILES
         from cfteach.teaching import select_tests
 
+        check_positive(per_level, "--per-level")
+        check_positive(human_models, "--human-models")
+        _check_choice(profile, PROFILES, "--profile")
+        if unbounded_models is not None:
+            _check_choice(unbounded_models, tuple(UNBOUNDED_RULES), "--unbounded-models")
+        if seed < 0:
+            fail(f"--seed must be 0 or more, got {seed}")
+        check_out_file(out)
         curricula = []
         for path in training or []:
             try:
                 curricula.append(json.loads(Path(path).read_text()))
-            except (OSError, json.JSONDecodeError) as exc:
-                _fail(f"cannot read training curriculum {path}: {exc}")
+            except OSError as exc:
+                fail(f"--training {path}: cannot read it: {exc.strerror or exc}")
+            except json.JSONDecodeError as exc:
+                fail(f"--training {path}: not JSON ({exc.msg} at line {exc.lineno}); "
+                     "expected a curriculum written by `cfteach teach`")
+        dom = load_domain(domain, force=force)
         try:
-            ts = select_tests(domain, training=curricula, profile=profile, seed=seed,
+            ts = select_tests(dom, training=curricula, profile=profile, seed=seed,
                               per_level=per_level, human_models=human_models,
                               include_candidates=all_candidates,
                               unbounded_models=unbounded_models,
                               progress=sys.stderr.isatty())
-        except (ValueError, TypeError) as exc:
-            _fail(str(exc))
+        except (ValueError, TypeError, KeyError) as exc:
+            fail(str(exc))
         data = ts.to_json()
         for level, items in data["tests"].items():
             if len(items) < per_level:

@@ -13,6 +13,7 @@ File format: docs/domains.md.
 
 from __future__ import annotations
 
+import re
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -46,14 +47,42 @@ def _load_builtin(name: str) -> Domain:
     return Domain.from_spec(parse_spec(load_toml(path), source=str(path)))
 
 
+@cache
+def _load_random(spec: str) -> Domain:
+    from cfteach.domains.random import parse_random_spec, random_gridworld
+
+    try:
+        return random_gridworld(*parse_random_spec(spec))
+    except TypeError as exc:  # the generator's own argument checks
+        raise ValueError(str(exc)) from None
+
+
+def _did_you_mean(text: str) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(text, builtin_names(), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
 def load(path_or_name: str | Path) -> Domain:
-    """Load a built-in domain by name (cached, so planning caches are shared) or a TOML file."""
+    """Load a built-in domain by name (cached, so planning caches are shared), a TOML file,
+    or a random domain written ``random:WxH:fF:nN:sS`` or by its name
+    ``random-WxH-fF-nN-sS`` (as its JSON files carry it; cached too)."""
     if isinstance(path_or_name, str) and path_or_name in builtin_names():
         return _load_builtin(path_or_name)
+    if isinstance(path_or_name, str) and path_or_name.startswith("random:"):
+        return _load_random(path_or_name)
     path = Path(path_or_name)
+    named = re.fullmatch(r"random-(\d+)x(\d+)-f(\d+)-n(\d+)-s(\d+)", str(path_or_name))
+    if named and not path.exists():  # the name a random domain's JSON files carry
+        return _load_random("random:{}x{}:f{}:n{}:s{}".format(*named.groups()))
+    if path.is_dir():
+        raise ValueError(f"{str(path_or_name)!r} is a directory, not a domain file")
     if not path.exists():
         raise ValueError(f"{str(path_or_name)!r} is neither a built-in domain "
-                         f"({', '.join(builtin_names())}) nor an existing file")
+                         f"({', '.join(builtin_names())}), a random domain "
+                         f"(random:WxH:fF:nN:sS) nor an existing file"
+                         + _did_you_mean(str(path_or_name)))
     return Domain.from_spec(parse_spec(load_toml(path), source=str(path)))
 
 

@@ -17,7 +17,11 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["random_gridworld", "random_gridworld_dict"]
+__all__ = ["RANDOM_SPEC_HELP", "is_random_spec", "parse_random_spec", "random_gridworld",
+           "random_gridworld_dict"]
+
+#: How a random domain is written wherever a domain name or file is accepted.
+RANDOM_SPEC_HELP = "random:WxH:fF:nN:sS (e.g. random:10x10:f5:n64:s0)"
 
 
 def _check_int(name: str, value: object, low: int) -> int:
@@ -153,3 +157,26 @@ def random_gridworld(width: int, height: int, n_features: int, n_instances: int,
 
     data = random_gridworld_dict(width, height, n_features, n_instances, seed, **options)
     return from_dict(data, source=f"random_gridworld(seed={seed})")
+
+
+def is_random_spec(text: object) -> bool:
+    """Whether a domain argument is a random-domain spec (``random:...``)."""
+    return isinstance(text, str) and text.startswith("random:")
+
+
+def parse_random_spec(spec: str) -> tuple[int, int, int, int, int]:
+    """``random:WxH:fF:nN:sS`` -> (width, height, n_features, n_instances, seed).
+
+    Every command that takes a domain accepts this form (`cfteach.domains.load`), so a
+    synthetic domain can be checked, taught and rendered like a file."""
+    parts = spec.split(":")[1:]
+    try:
+        if len(parts) != 4:
+            raise ValueError
+        w, h = (int(x) for x in parts[0].lower().split("x"))
+        keys = {p[0].lower(): int(p[1:]) for p in parts[1:]}
+        if set(keys) != {"f", "n", "s"}:
+            raise ValueError
+    except (ValueError, IndexError):
+        raise ValueError(f"bad random domain {spec!r}: write {RANDOM_SPEC_HELP}") from None
+    return w, h, keys["f"], keys["n"], keys["s"]

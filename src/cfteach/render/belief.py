@@ -177,13 +177,14 @@ def _finish_sphere(fig: Any, ax: Any, view: tuple[float, float],
         if axis @ eye > -0.2:  # a stub for each positive axis that is not hidden
             ax.plot(*zip(1.0 * axis, 1.25 * axis, strict=True), color="#444444", lw=1.0)
         labels.append((1.33 * axis, f"+{name}"))
+    star = None  # where "w*" goes: beside its star, or nowhere when the star is hidden
     if w_true is not None:
         w = np.asarray(w_true, dtype=float)
         w = w / np.linalg.norm(w)
         if w @ eye > 0.02:
             ax.scatter(*(w[:, None] * LIFT), color="#b71c1c", marker="*", s=110,
                        depthshade=False)
-        ax.text(*(w * 1.18), "w*", color="#b71c1c", fontsize=9, ha="center")
+            star = w * LIFT
     ax.set_proj_type("ortho")
     ax.view_init(elev=view[0], azim=view[1])
     ax.set_box_aspect((1, 1, 1), zoom=1.4)
@@ -191,7 +192,7 @@ def _finish_sphere(fig: Any, ax: Any, view: tuple[float, float],
     ax.set_ylim(-1.05, 1.05)
     ax.set_zlim(-1.05, 1.05)
     ax.set_axis_off()
-    _place_labels(fig, ax, labels)
+    _place_labels(fig, ax, labels, star=star)
 
 
 def plot_belief_sphere(
@@ -415,18 +416,64 @@ def _zoom_inset(
     inset.set_title(f"zoom: {np.degrees(2 * half):.2g}° wide", fontsize=7, pad=2)
 
 
-def _place_labels(fig: Any, ax: Any, labels: list[tuple[np.ndarray, str]]) -> None:
-    """Axis names in figure coordinates, pushed inwards so long feature names are not cut."""
+def _fig_xy(fig: Any, ax: Any, point: np.ndarray) -> np.ndarray:
     from mpl_toolkits.mplot3d import proj3d
 
-    for point, text in labels:
-        x2, y2, _ = proj3d.proj_transform(*point, ax.get_proj())
-        fx, fy = fig.transFigure.inverted().transform(ax.transData.transform((x2, y2)))
-        fy = min(max(fy, 0.03), 0.9)
-        if fx > 0.5:
-            fig.text(min(fx, 0.98), fy, text, fontsize=8, ha="right", va="center")
-        else:
-            fig.text(max(fx, 0.02), fy, text, fontsize=8, ha="left", va="center")
+    x2, y2, _ = proj3d.proj_transform(*point, ax.get_proj())
+    return fig.transFigure.inverted().transform(ax.transData.transform((x2, y2)))
+
+
+def _overlaps(a: Any, b: Any) -> bool:
+    return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
+
+
+def _place_labels(fig: Any, ax: Any, labels: list[tuple[np.ndarray, str]],
+                  star: np.ndarray | None = None) -> list[Any]:
+    """Axis names, and "w*" beside its star, as figure texts; returns the Text objects.
+
+    Each name sits beyond the end of its axis stub and extends away from the sphere's
+    centre, so the stub never runs through it; measured boxes are then moved inside the
+    figure and off one another (and "w*" off its star)."""
+    from matplotlib.transforms import Bbox
+
+    renderer = fig.canvas.get_renderer()
+    to_fig = fig.transFigure.inverted()
+    centre = _fig_xy(fig, ax, np.zeros(3))
+    items = [(text, _fig_xy(fig, ax, point), 0.0) for point, text in labels]
+    if star is not None:
+        items.append(("w*", _fig_xy(fig, ax, star), 0.03))
+    taken: list[Any] = []
+    if star is not None:
+        sx, sy = items[-1][1]
+        taken.append(Bbox([[sx - 0.03, sy - 0.03], [sx + 0.03, sy + 0.03]]))  # the star
+    texts = []
+    for text, (fx, fy), gap in items:
+        dx, dy = fx - centre[0], fy - centre[1]
+        ha = "left" if dx >= 0 else "right"
+        va = "bottom" if dy >= 0 else "top"
+        red = text == "w*"
+        t = fig.text(fx + (gap if dx >= 0 else -gap), fy + (gap if dy >= 0 else -gap), text,
+                     fontsize=9 if red else 8, ha=ha, va=va,
+                     color="#b71c1c" if red else "black")
+        box = t.get_window_extent(renderer).transformed(to_fig)
+        shift_x = max(0.0, 0.01 - box.x0) - max(0.0, box.x1 - 0.99)
+        shift_y = max(0.0, 0.01 - box.y0) - max(0.0, box.y1 - 0.91)
+        if abs(shift_x) > 1e-9 and not red:  # pushed back over its stub: step off the line
+            shift_y += 0.6 * box.height if dy >= 0 else -0.6 * box.height
+        box = box.translated(shift_x, shift_y)
+        step = box.height + 0.005
+        for _ in range(6):  # away from the centre, vertically, until nothing is hit
+            if not any(_overlaps(box, other) for other in taken):
+                break
+            move = step if (dy >= 0 and box.y1 + step <= 0.91) or box.y0 - step < 0.01 \
+                else -step
+            box = box.translated(0.0, move)
+            shift_y += move
+        x, y = t.get_position()
+        t.set_position((x + shift_x, y + shift_y))
+        taken.append(box)
+        texts.append(t)
+    return texts
 
 
 def belief_area_series(curriculum: Mapping[str, Any]) -> tuple[list[int], list[float]]:

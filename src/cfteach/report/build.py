@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -81,6 +81,27 @@ def default_layouts(
         return cache[key]
 
     return layout
+
+
+def feature_labels(name: str, names: Sequence[str],
+                   sources: Mapping[str, Any] | None = None) -> list[str]:
+    """The domain file's feature labels ("Mud", "Battery") for people, in the order of
+    `names`; the names themselves when the domain cannot be loaded or does not match."""
+    from cfteach import domains
+
+    src = (sources or {}).get(name, name)
+    try:
+        dom = src if hasattr(src, "feature_labels") else domains.load(src)
+    except (ValueError, OSError):
+        return list(names)
+    if list(dom.feature_names) != list(names):
+        return list(names)
+    return list(dom.feature_labels)
+
+
+def plural(n: Any, word: str) -> str:
+    """"1 action", "2 actions" (the word's plural is word + "s")."""
+    return f"{n} {word}" if n == 1 else f"{n} {word}s"
 
 
 def write_results(out_dir: str | Path, results: Mapping[str, Any]) -> list[Path]:
@@ -213,6 +234,10 @@ def build_report(
         img.mkdir(parents=True, exist_ok=True)
         rel = f"{name}/img"
         conds = _ordered_conditions(res.curricula)
+        first = next(iter(res.curricula.values()), None) or res.tests or {}
+        names = list(first.get("feature_names", []))
+        labels = feature_labels(name, names, meta.get("domain_files"))
+        label_of = dict(zip(names, labels, strict=True))
         columns = []
         for cond in conds:
             cur = res.curricula[cond]
@@ -228,7 +253,8 @@ def build_report(
                         "env": _fmt_env(demo),
                         "gain": demo.get("knowledge_gain"),
                         "area": demo.get("belief_area_after"),
-                        "masked": demo.get("masked_feature"),
+                        "masked": label_of.get(demo.get("masked_feature"),
+                                               demo.get("masked_feature")),
                         "n_actions": len(demo.get("actions", [])),
                         "reward": demo.get("reward"),
                         "actions": " ".join(demo.get("actions", [])),
@@ -238,7 +264,7 @@ def build_report(
             fig = bel.plot_belief_sphere(
                 cur["final_belief"]["constraints"],
                 w_true=cur["weights"],
-                feature_names=cur["feature_names"],
+                feature_names=labels,
                 title=f"{cond}: final belief",
                 resolution=sphere_resolution,
             )
@@ -281,7 +307,7 @@ def build_report(
                         res.tests["belief"]["constraints"],
                         bec=info["tests"][0]["constraints"],
                         w_true=res.tests["weights"],
-                        feature_names=res.tests["feature_names"],
+                        feature_names=labels,
                         title=f"{level}: belief vs first test's BEC",
                         resolution=sphere_resolution,
                     )
@@ -289,14 +315,14 @@ def build_report(
                     bel.save_figure(fig, img / file)
                     info["overlap_picture"] = f"{rel}/{file}"
                 bar.update()
-        first = next(iter(res.curricula.values()), None) or res.tests or {}
         every = [d for c in res.curricula.values() for d in c["demos"]]
         if res.tests is not None:
             every += [t for ts in res.tests["tests"].values() for t in ts]
         domains_view.append(
             {
                 "name": name,
-                "feature_names": first.get("feature_names", []),
+                "feature_names": names,
+                "feature_labels": labels,
                 "weights": first.get("weights", []),
                 "columns": columns,
                 "areas": areas_src,
@@ -314,6 +340,7 @@ def build_report(
         undefined=jinja2.StrictUndefined,
     )
     env.filters["num"] = _num
+    env.filters["plural"] = plural
     html = env.get_template("index.html.j2").render(
         domains=domains_view,
         summary=_pivot(summary_rows),

@@ -7,6 +7,7 @@ Debian's Chromium through Playwright against a throw-away server and database.
 from __future__ import annotations
 
 import tempfile
+import time
 from pathlib import Path
 
 import httpx
@@ -66,12 +67,26 @@ def take_screenshots(study_dir: str | Path, out: str | Path, *, prefix: str = "s
                     if kind == "closed_loop" and st["step"]["item"]["kind"] == "demonstration":
                         # let the page's own play end first, or it would overlap the bot's
                         page.wait_for_selector("#board[data-watched='true']")
+                    if kind == "demos":  # let the page's replay end before the bot plays
+                        _wait_watched(c, headers, st["step"])
                 if kind in ("complete", "screened_out"):
                     break
                 run_participant(c, None, token=token, study=study, stop_after=1)
             browser.close()
         app.state.service.engine.dispose()
     return saved
+
+
+def _wait_watched(client: httpx.Client, headers: dict, step: dict) -> None:
+    """Wait until the server counts the page's replay of demonstration 0 as watched: the
+    page's play end would otherwise arrive between the bot's start and end of another
+    demonstration, and that play would not count."""
+    deadline = time.monotonic() + len(step["demos"][0]["states"]) * step["step_ms"] / 1000 + 10
+    while time.monotonic() < deadline:
+        if client.get("/api/state", headers=headers).json()["step"]["completed"][0] >= 1:
+            return
+        time.sleep(0.1)
+    raise RuntimeError("the page's demonstration replay never counted as watched")
 
 
 def _stage(page, st: dict, study: dict) -> None:  # noqa: ANN001

@@ -35,6 +35,14 @@ def demo_json(ds: DemoSet, d: int) -> dict[str, Any]:
     }
 
 
+class BeliefError(RuntimeError):
+    """A curriculum's final belief lost w* (a bug or a domain the checks did not catch)."""
+
+
+#: Cosine tolerance of the "final belief contains w*" assertion (float rows).
+BELIEF_TOL = 1e-9
+
+
 @dataclass
 class Curriculum:
     """The demonstrations one condition shows, in order, and the learner's final belief."""
@@ -48,6 +56,16 @@ class Curriculum:
     final_belief: Region
     demo_set: DemoSet = field(repr=False)
     log: list[dict[str, Any]] = field(default_factory=list, repr=False)
+
+    def __post_init__(self) -> None:
+        # Every constraint a demonstration adds holds for w* (the robot's own choice is
+        # optimal under w*), so a final belief without w* means a wrong curriculum.
+        if not self.final_belief.contains(self.domain.weights, tol=BELIEF_TOL):
+            raise BeliefError(
+                f"{self.domain.name} {self.condition}: the final belief "
+                f"{_ints(self.final_belief.rows)} does not contain w* "
+                f"{[round(float(x), 3) for x in self.domain.weights]}; this curriculum would "
+                "teach a wrong reward (please report it with the domain file)")
 
     def __len__(self) -> int:
         return len(self.records)
