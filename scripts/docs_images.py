@@ -6,7 +6,8 @@ from the current code, in one run (so pictures and numbers always agree).
 Steps: `cfteach reproduce` (profile default, seed 0) into a temporary folder; the report's
 first screen and the delivery curricula, photographed in headless Chromium (1280 x 800);
 a belief sphere (`cfteach render belief delivery/proposed.json --demo 1`); the study pages
-(`cfteach study init --from` that output, then the study's own screenshot walk); the
+(`cfteach study init --from` that output, then the study's own screenshot walk; and a
+`--preview` skateboard study with the closed_loop condition for its three kinds of item); the
 README's numbers between its `report-numbers` markers (tests/test_readme_numbers.py checks
 them against a fresh run); the closed-loop teacher's particle beliefs
 (scripts/closed-loop-figures.py, which can also draw them alone into any folder).
@@ -70,6 +71,24 @@ def study_shots(results: Path, tmp: Path) -> None:
     print("wrote", ", ".join(p.name for p in kept))
 
 
+CLOSED_LOOP_IMAGES = {"study-closed-loop-demonstration.png", "study-closed-loop-test.png",
+                      "study-closed-loop-feedback.png"}
+
+
+def closed_loop_study_shots(tmp: Path) -> None:
+    """The live closed_loop condition's pages: a lesson, a diagnostic test, feedback."""
+    from cfteach.study.screenshots import take_screenshots
+
+    study = tmp / "cl-study"
+    run("study", "init", "--out", str(study), "--preview", "--domains", "skateboard",
+        "--conditions", "closed_loop", "--teacher", "max_items=9", "--demo-step-ms", "200")
+    saved = take_screenshots(study, tmp / "cl-shots", prefix="study-", kinds=("closed_loop",))
+    kept = [p for p in saved if p.name in CLOSED_LOOP_IMAGES]
+    for p in kept:
+        p.replace(IMAGES / p.name)
+    print("wrote", ", ".join(p.name for p in kept))
+
+
 def numbers_table(results: Path) -> str:
     """The README's block: per domain and condition, demonstrations and final belief area."""
     lines = ["| domain | " + " | ".join(CONDITIONS) + " |",
@@ -121,6 +140,7 @@ def main() -> None:
                 "--out", str(IMAGES / "belief-sphere.png"))
         if args.only in (None, "study"):
             study_shots(results, tmp)
+            closed_loop_study_shots(tmp)
 
 
 if __name__ == "__main__":

@@ -45,7 +45,21 @@ def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
     result = WideRunner().invoke(app, [*args, "--no-figures"])
     assert result.exit_code == 0, result.output
     fresh = json.loads((tmp_path / "results.json").read_text(encoding="utf-8"))
-    for key in ("participants", "exclusions", "icc", "h1", "mixed", "likert", "exploratory"):
+    for key in (
+        "participants",
+        "exclusions",
+        "descriptives",
+        "icc",
+        "h1",
+        "full_anova",
+        "full_anova_participants",
+        "glmm",
+        "ordinal",
+        "sensitivity",
+        "mixed",
+        "likert",
+        "exploratory",
+    ):
         assert fresh[key] == committed[key], key
     assert set(committed["figures"]) == {
         "difficulty",

@@ -125,12 +125,41 @@ def test_incomplete_data() -> None:
     ex = StudyExport(ex.participants, tests, likert, ex.demo_views)
     kept, table = apply_exclusions(ex, ExclusionConfig(aggregate_sd=None, item_sd=None))
     reasons = table.set_index("participant_id")["reason"].to_dict()
-    assert reasons == {"p01": "15 of 18 test responses", "p02": "5 of 6 Likert answers"}
+    assert reasons == {
+        "p01": "15 of 18 test responses (delivery/low 0 of 2, delivery/medium 1 of 2)",
+        "p02": "5 of 6 Likert answers (missing delivery/informativeness)",
+    }
     # an explicit expected count overrides the inferred one
     _, t2 = apply_exclusions(
         ex, ExclusionConfig(aggregate_sd=None, item_sd=None, expected_tests=15)
     )
     assert set(t2[t2.rule == "incomplete"]["participant_id"]) == {"p00", "p02", "p03", "p04"}
+
+
+def test_complete_is_defined_by_the_design_not_by_the_others() -> None:
+    """Everybody lacks the same three tests: before, the most anyone had (15) was 'complete'."""
+    opt, rew = _clean(5)
+    ex = make_export(opt, rew)
+    tests = ex.tests[~ex.tests.test_id.isin(["tiles-high-a", "tiles-high-b", "tiles-low-a"])]
+    ex = StudyExport(ex.participants, tests, ex.likert, ex.demo_views)
+    kept, table = apply_exclusions(ex, ExclusionConfig(aggregate_sd=None, item_sd=None))
+    assert kept.participants.empty
+    assert set(table["reason"]) == {"15 of 18 test responses (tiles/low 1 of 2, tiles/high 0 of 2)"}
+
+
+def test_eighteen_rows_without_a_high_test_are_incomplete() -> None:
+    """18 rows but no 'high' cell: kept before, and then silently dropped by pingouin."""
+    opt, rew = _clean(5)
+    ex = make_export(opt, rew)
+    t = ex.tests.copy()
+    mine = (t.participant_id == "p03") & (t.difficulty == "high")
+    t.loc[mine, "difficulty"] = "medium"
+    t.loc[mine, "test_id"] = t.loc[mine, "test_id"] + "-as-medium"
+    ex = StudyExport(ex.participants, t, ex.likert, ex.demo_views)
+    _, table = apply_exclusions(ex, ExclusionConfig(aggregate_sd=None, item_sd=None))
+    assert table["participant_id"].tolist() == ["p03"]
+    assert table["reason"].iloc[0].startswith("18 of 18 test responses (delivery/medium 4 of 2")
+    assert "delivery/high 0 of 2" in table["reason"].iloc[0]
 
 
 def test_aggregate_rule_matches_hand_threshold() -> None:
@@ -247,3 +276,27 @@ def test_quality_flags_and_optional_speed_rule() -> None:
     assert table.reason.iloc[0] == "finished in 4.0 min < 5 min"
     with pytest.raises(ValueError, match="min_minutes must be positive"):
         ExclusionConfig(min_minutes=0)
+
+
+def test_mad_rule_catches_what_mean_minus_3_sd_misses() -> None:
+    """Two all-wrong participants among 30 inflate the SD so much that mean - 3 SD is below
+    zero; median - 3 MAD is not pulled down by them."""
+    rng = np.random.default_rng(0)
+    opt = (rng.random((30, 18)) < rng.uniform(0.45, 0.8, (30, 1))).astype(int)
+    opt[[4, 17]] = 0
+    reward = np.where(opt == 1, -1.0, -1.2)
+    ex = make_export(opt, reward)
+    base = dict(item_sd=None)
+    _, sd = apply_exclusions(ex, ExclusionConfig(**base))
+    assert sd.empty  # the SD rule misses both
+    prop = opt.mean(axis=1)
+    med = np.median(prop)
+    mad = 1.4826 * np.median(np.abs(prop - med))
+    want = {f"p{i:02d}" for i in np.flatnonzero(prop < med - 3 * mad)}
+    assert want == {"p04", "p17"}
+    _, rob = apply_exclusions(ex, ExclusionConfig(aggregate_mad=3.0, **base))
+    assert set(rob["participant_id"]) == want
+    assert set(rob["rule"]) == {"aggregate_mad_outlier"}
+    assert "median" in rob["reason"].iloc[0] and "3 MAD" in rob["reason"].iloc[0]
+    with pytest.raises(ValueError, match="aggregate_mad must be positive"):
+        ExclusionConfig(aggregate_mad=0)

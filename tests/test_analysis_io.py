@@ -76,6 +76,12 @@ def test_missing_column_names_file_and_column(export_dir: Path, tmp_path: Path) 
         ("test_responses.csv", "confidence", "7", "column 'confidence' value 7 outside 1..5"),
         ("likert.csv", "value", "", "column 'value' has an empty cell"),
         ("demo_views.csv", "demo_index", "1.5", "column 'demo_index' must hold integers"),
+        (
+            "likert.csv",
+            "value",
+            "99999999999999999999",
+            "column 'value' has an out-of-range integer '?99999999999999999999",
+        ),
     ],
 )
 def test_bad_values(

@@ -159,8 +159,11 @@ def test_missing_conditions_skip_only_what_cannot_run() -> None:
     r1, _ = compute_results(one)
     assert all("skipped" in r1["mixed"][f] for f in S.BETWEEN_FACTORS)
     assert "skipped" in r1["likert"]["informativeness"]["condition"]
-    with pytest.raises(ValueError, match="the analyses need at least 2"):
-        compute_results(ex.subset(p["participant_id"].iloc[:1]))
+    first = p.loc[p.status == "completed", "participant_id"].iloc[:1]
+    pilot, _ = compute_results(ex.subset(first))  # one person: descriptives, tests skipped
+    assert pilot["participants"]["n_retained"] == 1
+    assert "needs at least 3 participants" in pilot["h1"]["rm_anova"]["skipped"]
+    assert [r["n"] for r in pilot["descriptives"]["rows"]] == [1, 1]
 
 
 def test_cli_synthetic_then_analyze_export(tmp_path: Path) -> None:

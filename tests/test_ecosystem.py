@@ -109,19 +109,22 @@ def test_answers_carry_no_prolific_ids(study):
 
 def test_answers_keep_the_client_clock_when_the_export_has_it(study, tmp_path):
     study_dir, export = study
-    newer = tmp_path / "export"
-    newer.mkdir()
-    (newer / "participants.csv").write_bytes((export / "participants.csv").read_bytes())
     with open(export / "test_responses.csv", newline="", encoding="utf-8") as f:
-        rows = list(csv.DictReader(f))
-    with open(newer / "test_responses.csv", "w", newline="", encoding="utf-8") as f:
-        w = csv.DictWriter(f, [*rows[0], "client_time_ms"])
-        w.writeheader()
-        w.writerows({**r, "client_time_ms": 1000 + i} for i, r in enumerate(rows))
-    eps = ecosystem.answer_episodes(domains.load("skateboard"), study_dir, newer)
+        rows = [{k: v for k, v in r.items() if k != "client_time_ms"}
+                for r in csv.DictReader(f)]
+    for name, extra in (("newer", True), ("older", False)):  # with and without the column
+        folder = tmp_path / name
+        folder.mkdir()
+        (folder / "participants.csv").write_bytes((export / "participants.csv").read_bytes())
+        with open(folder / "test_responses.csv", "w", newline="", encoding="utf-8") as f:
+            w = csv.DictWriter(f, [*rows[0], *(["client_time_ms"] if extra else [])])
+            w.writeheader()
+            w.writerows({**r, **({"client_time_ms": 1000 + i} if extra else {})}
+                        for i, r in enumerate(rows))
+    eps = ecosystem.answer_episodes(domains.load("skateboard"), study_dir, tmp_path / "newer")
     want = [1000 + i for i, r in enumerate(rows) if r["domain"] == "skateboard"]
     assert [e.metadata["client_time_ms"] for e in eps] == want
-    eps = ecosystem.answer_episodes(domains.load("skateboard"), study_dir, export)
+    eps = ecosystem.answer_episodes(domains.load("skateboard"), study_dir, tmp_path / "older")
     assert "client_time_ms" not in eps[0].metadata
 
 

@@ -26,6 +26,7 @@ class Frames:
     domain_means: pd.DataFrame  # participant x domain: optimal (mean)
     subjects: pd.DataFrame  # one row per participant: Likert medians, replays, time
     likert_long: pd.DataFrame  # one row per Likert answer (the export's likert.csv)
+    participants: pd.DataFrame | None = None  # the retained rows of participants.csv
 
 
 def _design(participants: pd.DataFrame) -> pd.DataFrame:
@@ -77,4 +78,6 @@ def build_frames(export: StudyExport) -> Frames:
     for col in ("informativeness", "mental_effort", "plays_completed", "replays"):
         if col not in subjects:
             subjects[col] = np.nan
-    return Frames(t, cells, domain_means, subjects.reset_index(), export.likert)
+    return Frames(
+        t, cells, domain_means, subjects.reset_index(), export.likert, export.participants
+    )

@@ -12,8 +12,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy import stats as sps
 
-from cfteach.analysis.io import LIKERT_ITEMS, StudyExport
+from cfteach.analysis.io import (
+    DIFFICULTIES,
+    LIKERT_ITEMS,
+    TESTS_PER_DOMAIN_DIFFICULTY,
+    StudyExport,
+)
 
 
 @dataclass(frozen=True)
@@ -23,8 +29,9 @@ class ExclusionConfig:
     drop_preview: bool = True
     drop_incomplete_status: bool = True  # status other than 'completed'
     require_complete_data: bool = True  # all tests, both Likert items in every domain
-    expected_tests: int | None = None  # None: the most tests any completed participant has
+    expected_tests: int | None = None  # None: the design's 6 tests in each of their domains
     aggregate_sd: float | None = 3.0  # rule 1: proportion correct below mean - k SD
+    aggregate_mad: float | None = None  # robust rule 1: below median - k MAD (off by default)
     item_sd: float | None = 3.0  # rule 2: reward below item mean - k SD ...
     item_count_sd: float | None = 3.0  # ... on more items than mean + k SD of the counts
     item_counts_among_nonzero: bool = True  # authors: count stats over participants with >= 1
@@ -33,7 +40,7 @@ class ExclusionConfig:
     min_minutes: float | None = None  # exclude completions faster than this (off by default)
 
     def __post_init__(self) -> None:
-        for name in ("aggregate_sd", "item_sd", "item_count_sd"):
+        for name in ("aggregate_sd", "aggregate_mad", "item_sd", "item_count_sd"):
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise ValueError(f"{name} must be positive or None, got {v}")
@@ -92,6 +99,19 @@ def aggregate_outliers(tests: pd.DataFrame, k: float) -> pd.DataFrame:
     return _flagged(flagged, thr, mean, sd)
 
 
+def aggregate_mad_outliers(tests: pd.DataFrame, k: float) -> pd.DataFrame:
+    """Participants whose proportion correct is below median - k MAD (MAD scaled by 1.4826,
+    so it estimates the SD for normal data). Unlike mean - k SD, two all-wrong participants
+    cannot pull the threshold below themselves. Columns as `aggregate_outliers` (mean = the
+    median, sd = the scaled MAD)."""
+    prop = tests.groupby("participant_id")["optimal"].mean().astype(float)
+    med = float(prop.median()) if len(prop) else float("nan")
+    mad = float(sps.median_abs_deviation(prop, scale="normal")) if len(prop) > 1 else float("nan")
+    thr = med - k * mad
+    flagged = prop[prop < thr] if np.isfinite(thr) and mad > 0 else prop.iloc[:0]
+    return _flagged(flagged, thr, med, mad)
+
+
 def item_outliers(
     tests: pd.DataFrame,
     k_item: float,
@@ -135,6 +155,81 @@ def _flagged(flagged: pd.Series, thr: float, mean: float, sd: float) -> pd.DataF
     )
 
 
+def _domains(export: StudyExport, participants: pd.DataFrame) -> dict[str, list[str]]:
+    """Each participant's domains: their `domain_order`, else every domain of the export."""
+    every = sorted(set(export.tests["domain"]) | set(export.likert["domain"]))
+    orders = (
+        participants["domain_order"]
+        if "domain_order" in participants
+        else pd.Series([None] * len(participants), index=participants.index)
+    )
+    return {
+        pid: order.split(";") if isinstance(order, str) and order else every
+        for pid, order in zip(participants["participant_id"], orders, strict=True)
+    }
+
+
+def _listing(items: list[str]) -> str:
+    return ", ".join(items[:4]) + (f" and {len(items) - 4} more" if len(items) > 4 else "")
+
+
+def missing_responses(
+    export: StudyExport, participants: pd.DataFrame, expected_tests: int | None = None
+) -> dict[str, str]:
+    """participant_id -> what is missing, for participants without a complete set of tests.
+
+    Complete is defined by the design (`TESTS_PER_DOMAIN_DIFFICULTY` tests of every
+    difficulty in each of the participant's domains), never by what other participants
+    have. With `expected_tests` the total must equal it and every difficulty must appear.
+    """
+    doms = _domains(export, participants)
+    t = export.tests[export.tests["participant_id"].isin(doms)]
+    per: dict[str, dict[tuple[str, str], int]] = {}
+    for (pid, dom, d), n in t.groupby(["participant_id", "domain", "difficulty"]).size().items():
+        per.setdefault(pid, {})[(dom, d)] = int(n)
+    out: dict[str, str] = {}
+    for pid, domains in doms.items():
+        mine = per.get(pid, {})
+        total = sum(mine.values())
+        no_diff = [d for d in DIFFICULTIES if not any(k[1] == d for k in mine)]
+        if expected_tests is not None:
+            if total != expected_tests or no_diff:
+                out[pid] = f"{total} of {expected_tests} test responses" + (
+                    f"; no {'/'.join(no_diff)} test" if no_diff else ""
+                )
+            continue
+        need = TESTS_PER_DOMAIN_DIFFICULTY
+        gaps = [
+            f"{dom}/{d} {mine.get((dom, d), 0)} of {need}"
+            for dom in domains
+            for d in DIFFICULTIES
+            if mine.get((dom, d), 0) != need
+        ]
+        gaps += [
+            f"{dom} not in domain_order" for dom in sorted({k[0] for k in mine} - set(domains))
+        ]
+        if gaps:
+            expected = len(domains) * len(DIFFICULTIES) * need
+            out[pid] = f"{total} of {expected} test responses ({_listing(gaps)})"
+    return out
+
+
+def missing_likert(export: StudyExport, participants: pd.DataFrame) -> dict[str, str]:
+    """participant_id -> what is missing, for participants without both items in each domain."""
+    doms = _domains(export, participants)
+    lk = export.likert[export.likert["participant_id"].isin(doms)]
+    have = set(zip(lk["participant_id"], lk["domain"], lk["item"], strict=True))
+    out = {}
+    for pid, domains in doms.items():
+        gaps = [
+            f"{dom}/{it}" for dom in domains for it in LIKERT_ITEMS if (pid, dom, it) not in have
+        ]
+        if gaps:
+            need = len(domains) * len(LIKERT_ITEMS)
+            out[pid] = f"{need - len(gaps)} of {need} Likert answers (missing {_listing(gaps)})"
+    return out
+
+
 def apply_exclusions(
     export: StudyExport, config: ExclusionConfig | None = None
 ) -> tuple[StudyExport, pd.DataFrame]:
@@ -174,30 +269,17 @@ def apply_exclusions(
         )
     if cfg.require_complete_data:
         ids = remaining["participant_id"]
-        t = export.tests[export.tests["participant_id"].isin(ids)]
-        n_tests = t.groupby("participant_id").size().reindex(ids, fill_value=0)
-        if cfg.expected_tests is not None:
-            expected = cfg.expected_tests
-        else:
-            expected = int(n_tests.max()) if len(n_tests) else 0
-        domains = sorted(set(t["domain"]))
-        lk = export.likert[export.likert["participant_id"].isin(ids)]
-        n_lk = (
-            lk.drop_duplicates(["participant_id", "domain", "item"])
-            .groupby("participant_id")
-            .size()
-            .reindex(ids, fill_value=0)
-        )
-        need_lk = len(domains) * len(LIKERT_ITEMS)
+        missing_tests = missing_responses(export, remaining, cfg.expected_tests)
         drop(
-            remaining["participant_id"].map(n_tests) != expected,
+            ids.isin(missing_tests),
             "incomplete",
-            lambda p: f"{n_tests[p['participant_id']]} of {expected} test responses",
+            lambda p: missing_tests[p["participant_id"]],
         )
+        missing_lk = missing_likert(export, remaining)
         drop(
-            remaining["participant_id"].map(n_lk) < need_lk,
+            remaining["participant_id"].isin(missing_lk),
             "incomplete",
-            lambda p: f"{n_lk[p['participant_id']]} of {need_lk} Likert answers",
+            lambda p: missing_lk[p["participant_id"]],
         )
     flagged: set[str] = set()
     if cfg.aggregate_sd is not None:
@@ -212,6 +294,22 @@ def apply_exclusions(
                 f"{agg.at[p['participant_id'], 'threshold']:.3f} (mean "
                 f"{agg.at[p['participant_id'], 'mean']:.3f} - {cfg.aggregate_sd:g} SD "
                 f"{agg.at[p['participant_id'], 'sd']:.3f})"
+            ),
+        )
+    if cfg.aggregate_mad is not None:
+        t = export.tests[
+            export.tests["participant_id"].isin(set(remaining["participant_id"]) | flagged)
+        ]
+        mad = aggregate_mad_outliers(t, cfg.aggregate_mad).set_index("participant_id")
+        flagged |= set(mad.index)
+        drop(
+            remaining["participant_id"].isin(mad.index),
+            "aggregate_mad_outlier",
+            lambda p: (
+                f"proportion correct {mad.at[p['participant_id'], 'value']:.3f} < "
+                f"{mad.at[p['participant_id'], 'threshold']:.3f} (median "
+                f"{mad.at[p['participant_id'], 'mean']:.3f} - {cfg.aggregate_mad:g} MAD "
+                f"{mad.at[p['participant_id'], 'sd']:.3f})"
             ),
         )
     if cfg.item_sd is not None and cfg.item_count_sd is not None:

@@ -17,6 +17,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from cfteach.analysis.aggregate import CF_LABELS, FS_LABELS, Frames  # noqa: E402
+from cfteach.analysis.descriptives import CONDITION_LABELS  # noqa: E402
 from cfteach.analysis.io import CONDITIONS, DIFFICULTIES, LIKERT_ITEMS  # noqa: E402
 
 plt.rcParams["svg.hashsalt"] = "cfteach"  # stable SVG ids, so re-runs give identical files
@@ -56,7 +57,7 @@ def interaction_plot(results: dict[str, Any], out_dir: Path) -> list[str]:
     panels = [
         ("counterfactual", "Counterfactual scaffolding", CF_LABELS),
         ("feature_scaffolding", "Feature scaffolding", FS_LABELS),
-        ("condition", "Condition", {c: c for c in CONDITIONS}),
+        ("condition", "Condition", CONDITION_LABELS),
     ]
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2), sharey=True)
     x = np.arange(len(DIFFICULTIES))
@@ -102,19 +103,25 @@ def interaction_plot(results: dict[str, Any], out_dir: Path) -> list[str]:
 
 
 def likert_bars(frames: Frames, out_dir: Path) -> list[str]:
-    """Stacked percentage bars of the Likert answers by condition, one panel per item."""
+    """Stacked percentage bars of the Likert ratings by condition, one panel per item.
+
+    One value per participant (the median over domains), as the tests use them; a median
+    of an even number of answers (x.5) is rounded up.
+    """
     fig, axes = plt.subplots(1, 2, figsize=(13, 3.6), sharey=True)
-    lk = frames.tests[["participant_id", "condition"]].drop_duplicates()
+    s = frames.subjects.copy()
+    s["condition"] = s["condition"].astype(str)
     for ax, item in zip(axes, LIKERT_ITEMS, strict=True):
-        data = frames.likert_long[frames.likert_long["item"] == item]
-        data = data.drop(columns=["condition"]).merge(lk, on="participant_id")
-        counts = pd.crosstab(data["condition"].astype(str), data["value"]).reindex(
+        data = s.dropna(subset=[item])
+        values = np.floor(data[item].astype(float) + 0.5).astype(int)
+        counts = pd.crosstab(data["condition"], values).reindex(
             index=list(CONDITIONS), columns=range(1, 6), fill_value=0
         )
         pct = counts.div(counts.sum(axis=1).replace(0, np.nan), axis=0).fillna(0) * 100
         _stacked(ax, pct, item)
+        ax.set_xlabel("% of participants (median rating over domains)")
         ax.set_title(item.replace("_", " ").capitalize() + " of the demonstrations")
-    axes[0].set_yticks(range(len(CONDITIONS)), list(CONDITIONS))
+    axes[0].set_yticks(range(len(CONDITIONS)), [CONDITION_LABELS[c] for c in CONDITIONS])
     fig.tight_layout()
     return _save(fig, out_dir, "likert")
 
@@ -145,6 +152,8 @@ def _stacked(ax: plt.Axes, pct: pd.DataFrame, item: str) -> None:
 def confidence_plot(frames: Frames, spearman: dict[str, Any], out_dir: Path) -> list[str]:
     """Confidence by difficulty: bubbles sized by count, plus stacked answer shares."""
     cells = frames.cells.dropna(subset=["confidence"])
+    if cells.empty:  # the confidence item is optional in the export
+        return []
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.2))
     counts = cells.groupby(["difficulty_code", "confidence"]).size().reset_index(name="n")
     ax.scatter(
@@ -162,19 +171,22 @@ def confidence_plot(frames: Frames, spearman: dict[str, Any], out_dir: Path) -> 
     ax.set_yticks(range(1, 6))
     ax.set_xlabel("Test difficulty")
     ax.set_ylabel("Confidence (median per participant x difficulty)")
-    r, n = spearman["r"], spearman["n"]
+    r, n = spearman.get("r"), len(cells)
     ax.set_title(f"r_s = {r:.2f}, N = {n}" if r is not None else f"N = {n}")
     ax.legend(loc="lower left", fontsize=8)
     ax.set_xlim(-0.5, 2.5)
     ax.set_ylim(0.5, 5.5)
-    t = frames.tests.dropna(subset=["confidence"])
-    cnt = pd.crosstab(t["difficulty"].astype(str), t["confidence"].astype(int)).reindex(
-        index=list(DIFFICULTIES), columns=range(1, 6), fill_value=0
-    )
-    pct = cnt.div(cnt.sum(axis=1).replace(0, np.nan), axis=0).fillna(0) * 100
-    _stacked(ax2, pct, "confidence")
-    ax2.set_yticks(range(3), DIFF_LABELS)
-    ax2.set_title("Confidence answers by difficulty")
+    data = [
+        cells.loc[cells["difficulty"] == d, "confidence"].to_numpy(dtype=float)
+        for d in DIFFICULTIES
+    ]
+    ax2.boxplot(data, positions=range(3), widths=0.5)
+    ax2.set_xticks(range(3), DIFF_LABELS)
+    ax2.set_yticks(range(1, 6), [f"{i} {LIKERT_LABELS['confidence'][i - 1]}" for i in range(1, 6)])
+    ax2.set_ylim(0.5, 5.5)
+    ax2.set_xlabel("Test difficulty")
+    ax2.set_ylabel("Median confidence per participant")
+    ax2.set_title("Per participant x difficulty (as the tests use it)")
     fig.tight_layout()
     return _save(fig, out_dir, "confidence")
 
@@ -185,34 +197,48 @@ def _stars(p: float | None) -> str:
     return "***" if p < 0.001 else "**" if p < 0.01 else "*" if p < 0.05 else "n.s."
 
 
-def difficulty_plot(results: dict[str, Any], out_dir: Path) -> list[str]:
-    """H1: mean proportion optimal per difficulty (95% CI) with the paired post hocs."""
-    rm = results["h1"]["rm_anova"]
+def difficulty_plot(frames: Frames, results: dict[str, Any], out_dir: Path) -> list[str]:
+    """H1: mean proportion optimal per difficulty with within-subject 95% CIs
+    (Cousineau-Morey) and the paired post hocs' corrected p under the axis."""
+    from cfteach.analysis.stats import complete_cells, within_subject_ci
+
     ph = results["h1"]["posthoc"]["paired"]
-    fig, ax = plt.subplots(figsize=(5.2, 4.2))
+    cells = complete_cells(frames.cells)
+    if cells.empty:
+        cells = frames.cells
+    ci = within_subject_ci(cells)
+    n = int(cells["participant_id"].nunique())
+    fig, ax = plt.subplots(figsize=(5.2, 4.4))
     x = np.arange(len(DIFFICULTIES))
-    m = [rm["means"][d]["mean"] for d in DIFFICULTIES]
-    ci = [rm["means"][d]["ci95"] for d in DIFFICULTIES]
-    m_arr = np.array([np.nan if v is None else v for v in m], dtype=float)
-    lo = np.array([np.nan if c[0] is None else c[0] for c in ci], dtype=float)
-    hi = np.array([np.nan if c[1] is None else c[1] for c in ci], dtype=float)
+    m_arr = np.array([np.nan if ci[d]["mean"] is None else ci[d]["mean"] for d in DIFFICULTIES])
+    half = np.array([np.nan if ci[d]["half"] is None else ci[d]["half"] for d in DIFFICULTIES])
     ax.bar(x, m_arr, color=["#8fbc8f", "#e9c46a", "#e76f51"], edgecolor="k", width=0.6)
-    ax.errorbar(x, m_arr, yerr=[m_arr - lo, hi - m_arr], fmt="none", ecolor="k", capsize=4)
-    top = np.nanmax(hi) if np.isfinite(hi).any() else 1.0
-    pairs = {(r["A"], r["B"]): r["p_corr"] for r in ph["rows"]}
-    for k, (a, b) in enumerate([("low", "medium"), ("medium", "high"), ("low", "high")]):
+    ax.errorbar(x, m_arr, yerr=half, fmt="none", ecolor="k", capsize=4)
+    pairs = {(r["A"], r["B"]): r["p_corr"] for r in ph.get("rows", [])}
+    notes = []
+    for a, b in [("low", "medium"), ("medium", "high"), ("low", "high")]:
         p = pairs.get((a, b), pairs.get((b, a)))
-        i, j = DIFFICULTIES.index(a), DIFFICULTIES.index(b)
-        y = top + 0.06 + 0.08 * k
-        ax.plot([i, i, j, j], [y - 0.02, y, y, y - 0.02], color="k", lw=0.8)
-        ax.text((i + j) / 2, y + 0.005, _stars(p), ha="center", va="bottom", fontsize=9)
+        if pairs:
+            notes.append(f"{a}-{b} {_stars(p)}")
     ax.set_xticks(x, DIFF_LABELS)
     ax.set_xlabel("Test difficulty")
-    ax.set_ylabel("Proportion optimal (mean, 95% CI)")
-    ax.set_ylim(0, max(1.0, top + 0.35))
-    ax.set_title(f"N = {rm['n_participants']}; paired t-tests, {ph['padjust']}", fontsize=9)
+    ax.set_ylabel("Proportion optimal (mean, within-subject 95% CI)")
+    ax.set_ylim(0, 1)
+    test = (
+        f"paired t-tests ({ph['padjust']}): " + ", ".join(notes) if pairs else "too few for tests"
+    )
+    ax.set_title(f"N = {n}; {test}", fontsize=8)
     fig.tight_layout()
     return _save(fig, out_dir, "difficulty")
+
+
+def simple_effect_label(row: dict[str, Any]) -> str:
+    """The p printed over a difficulty: Holm across the difficulties, the one the report uses
+    (never the uncorrected t-test p)."""
+    p = row.get("p_holm_across")
+    if p is None:
+        return ""
+    return "p_Holm < .001" if p < 0.001 else f"p_Holm = {p:.3f}".replace("0.", ".", 1)
 
 
 def paper_bars(results: dict[str, Any], out_dir: Path) -> list[str]:
@@ -238,34 +264,29 @@ def paper_bars(results: dict[str, Any], out_dir: Path) -> list[str]:
         pos = x + (i - (len(levels) - 1) / 2) * width
         ax.bar(pos, mean, width * 0.95, color=colors[i], label=CF_LABELS.get(int(lvl), lvl))
         ax.errorbar(pos, mean, yerr=[lo, hi], fmt="none", ecolor="k", capsize=3)
-    for row in res["simple_effects"]["rows"]:
-        j = DIFFICULTIES.index(row["difficulty"])
-        p = row["p_tukey"]
-        ax.text(
-            j,
-            1.02,
-            "p < .001"
-            if p is not None and p < 0.001
-            else f"p = {p:.3f}".replace("0.", ".", 1)
-            if p is not None
-            else "",
-            ha="center",
-            fontsize=8,
-        )
-    ax.set_xticks(x, DIFF_LABELS)
-    ax.set_xlabel("Test difficulty")
+    by_diff = {row["difficulty"]: simple_effect_label(row) for row in res["simple_effects"]["rows"]}
+    ax.set_xticks(
+        x,
+        [f"{lbl}\n{by_diff.get(d, '')}" for lbl, d in zip(DIFF_LABELS, DIFFICULTIES, strict=True)],
+    )
+    ax.set_xlabel("Test difficulty (simple effect of counterfactual scaffolding)")
     ax.set_ylabel("Proportion optimal (mean, 95% CI)")
-    ax.set_ylim(0, 1.1)
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
+    ax.set_ylim(0, 1)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.24), ncol=2, frameon=False)
     ax.set_title("Counterfactual scaffolding (paper's Fig. 5 form)", fontsize=10)
     fig.tight_layout()
     return _save(fig, out_dir, "paper_bars")
 
 
-def exploratory_plot(frames: Frames, out_dir: Path) -> list[str]:
-    """Per-participant demonstration plays and test time per optimal step, by condition."""
+def exploratory_plot(
+    frames: Frames, out_dir: Path, tests: dict[str, Any] | None = None
+) -> list[str]:
+    """Per-participant demonstration plays and test time per optimal step, by condition,
+    with the one-way ANOVA by condition in each panel's title."""
+    from cfteach.analysis.report import fmt_F
+
     s = frames.subjects
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
     panels = [
         ("plays_completed", "Plays per demonstration"),
         ("time_norm", "Test time per optimal step (s)"),
@@ -281,8 +302,18 @@ def exploratory_plot(frames: Frames, out_dir: Path) -> list[str]:
             ax.scatter(
                 i + rng.uniform(-0.15, 0.15, len(d)), d, s=8, alpha=0.5, color=COND_COLORS[c]
             )
-        ax.set_xticks(range(len(CONDITIONS)), list(CONDITIONS), fontsize=8)
+        names = [CONDITION_LABELS[c].replace(" + ", " +\n") for c in CONDITIONS]
+        ax.set_xticks(range(len(CONDITIONS)), names, fontsize=8)
+        ax.set_xlabel("Condition (one point per participant)")
         ax.set_ylabel(label)
+        a = ((tests or {}).get(col) or {}).get("condition") or {}
+        ax.set_title(
+            "one-way ANOVA: " + fmt_F(a["df1"], a["df2"], a["F"], a["p"])
+            if "F" in a
+            else "not tested: "
+            + str(a.get("skipped", (tests or {}).get(col, {}).get("skipped", "n/a"))),
+            fontsize=9,
+        )
         ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     return _save(fig, out_dir, "exploratory")
@@ -290,11 +321,12 @@ def exploratory_plot(frames: Frames, out_dir: Path) -> list[str]:
 
 def make_figures(frames: Frames, results: dict[str, Any], out_dir: Path) -> dict[str, list[str]]:
     """All figures into `out_dir`; returns figure name -> file names."""
-    return {
-        "difficulty": difficulty_plot(results, out_dir),
+    figures = {
+        "difficulty": difficulty_plot(frames, results, out_dir),
         "interaction": interaction_plot(results["mixed"], out_dir),
         "paper_bars": paper_bars(results["mixed"], out_dir),
         "likert": likert_bars(frames, out_dir),
         "confidence": confidence_plot(frames, results["h1"]["spearman"], out_dir),
-        "exploratory": exploratory_plot(frames, out_dir),
+        "exploratory": exploratory_plot(frames, out_dir, results.get("exploratory")),
     }
+    return {name: files for name, files in figures.items() if files}

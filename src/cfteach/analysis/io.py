@@ -1,8 +1,9 @@
 """Load and validate a study export (the tidy CSVs written by `cfteach study export`).
 
-Every file is read by column name; a missing file, a missing column or a value outside its
-allowed set raises `ExportError` naming the file and the column, so a broken export fails
-loudly before any statistic is computed.
+Every file is read by column name (extra columns and extra files are ignored); a missing
+file, a missing column or a value outside its allowed set raises `ExportError` naming the
+file and the column, and the checks across rows in `validate` (duplicates, the `optimal`
+rule, test items, domains, timestamps) run before any statistic is computed.
 """
 
 from __future__ import annotations
@@ -18,6 +19,9 @@ STATUSES = ("completed", "screened_out", "declined", "abandoned", "in_progress")
 LIKERT_ITEMS = ("informativeness", "mental_effort")
 CF_CONDITIONS = frozenset({"counterfactual_only", "proposed"})
 FS_CONDITIONS = frozenset({"feature_only", "proposed"})
+#: The study's design: every domain shows this many tests of each difficulty (3 x 2 = 6),
+#: so a complete participant has len(domain_order) x 6 test responses.
+TESTS_PER_DOMAIN_DIFFICULTY = 2
 
 # column -> (kind, required non-empty). kinds: str, int, float, bool, or a tuple of allowed str.
 SCHEMA: dict[str, dict[str, tuple[object, bool]]] = {
@@ -133,6 +137,12 @@ def _parse_column(df: pd.DataFrame, fname: str, col: str, kind: object, required
     if len(bad):
         raise ExportError(f"{fname}: column '{col}' has non-numeric value {bad.iloc[0]!r}")
     if kind in ("int", "bool"):
+        huge = num[~missing].abs() >= 2**53  # beyond exact floats (and int64 wraps around)
+        if huge.any():
+            raise ExportError(
+                f"{fname}: column '{col}' has an out-of-range integer "
+                f"{raw[~missing][huge].iloc[0]!r}"
+            )
         frac = num[~missing] % 1 != 0
         if frac.any():
             raise ExportError(
@@ -180,6 +190,14 @@ def load_export(export_dir: str | Path) -> StudyExport:
     tests = read_table(d / "test_responses.csv", "test_responses.csv")
     likert = read_table(d / "likert.csv", "likert.csv")
     demos = read_table(d / "demo_views.csv", "demo_views.csv")
+    from cfteach.analysis import validate
+
+    for fname, df in (
+        ("participants.csv", participants),
+        ("test_responses.csv", tests),
+        ("likert.csv", likert),
+    ):
+        validate.check_no_rows(df, fname)
     dup = participants["participant_id"].duplicated()
     if dup.any():
         raise ExportError(
@@ -215,6 +233,12 @@ def load_export(export_dir: str | Path) -> StudyExport:
                 f"{wrong['participant_id'].iloc[0]!r}, but participants.csv says "
                 f"{cond[wrong.index[0]]!r}"
             )
+        if fname in validate.ROW_KEYS:
+            validate.check_duplicates(df, fname)
+        validate.check_domains_in_order(participants, df, fname)
+    validate.check_timestamps(participants)
+    validate.check_test_items(tests)
+    validate.check_optimal(tests)
     return StudyExport(participants, tests, likert, demos)
 
 
@@ -260,7 +284,7 @@ DESCRIPTIONS = {
     "difficulty": "test difficulty (Alg. 2)",
     "reward": "reward of the participant's trajectory under the true weights",
     "optimal_reward": "reward of the robot's optimal trajectory",
-    "optimal": "1 if reward equals the optimal reward (M1)",
+    "optimal": "1 if reward equals the optimal reward within 1e-9, relative or absolute (M1)",
     "optimal_length": "number of actions of the robot's optimal answer",
     "time_ms": "ms from the test being shown to its submission (server clock)",
     "client_time_ms": "the same time as the browser reported it (not trusted)",

@@ -45,16 +45,12 @@ def compute_results(
 
     from cfteach import __version__
     from cfteach.analysis import stats
+    from cfteach.analysis.sensitivity import sensitivity
 
     cfg = config or AnalysisConfig()
     kept, excluded = apply_exclusions(export, cfg.exclusions)
     if kept.participants.empty:
-        raise ValueError("no participant is left after the exclusions; nothing to analyse")
-    if kept.participants["participant_id"].nunique() < 2:
-        raise ValueError(
-            f"{len(kept.participants)} participant(s) left after the exclusions; "
-            "the analyses need at least 2"
-        )
+        raise ValueError(_nobody_left(export, excluded))
     if kept.tests.empty:
         raise ValueError("the retained participants have no test responses; nothing to analyse")
     frames = build_frames(kept)
@@ -85,22 +81,47 @@ def compute_results(
             "conditions_missing": [c for c in CONDITIONS if not by_cond.get(c, 0)],
         },
         "exclusions": excluded.to_dict(orient="records"),
+        "sensitivity": sensitivity(export, cfg.exclusions),
         "quality_flags": quality_flags(kept.participants).to_dict(orient="records"),
         **results,
     }
     return to_jsonable(summary), frames
 
 
+def _nobody_left(export: StudyExport, excluded: Any) -> str:
+    """Why no participant is left, by rule, so the user knows which rule to look at."""
+    by_rule = excluded["rule"].value_counts()
+    rules = ", ".join(f"{rule}: {n}" for rule, n in by_rule.items())
+    return (
+        f"no participant is left after the exclusions (all {len(export.participants)} "
+        f"session(s) excluded; {rules or 'no rule'})"
+    )
+
+
 def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str, Any]:
+    from cfteach.analysis.descriptives import descriptives
+    from cfteach.analysis.factorial import full_anova
+    from cfteach.analysis.glmm import trial_glmm
+    from cfteach.analysis.ordinal import ordinal_models
+
+    full = full_anova(stats.complete_cells(frames.cells))
     return {
+        "full_anova": full.get("terms", []),
+        "full_anova_participants": full.get("participants", []),
+        "full_anova_skipped": full.get("skipped"),
+        "full_anova_detail": {k: v for k, v in full.items() if k not in ("terms", "participants")},
+        "glmm": trial_glmm(frames.tests),
+        "descriptives": descriptives(frames),
         "icc": stats.icc_domains(frames),
         "h1": {
             "rm_anova": stats.rm_anova_difficulty(frames),
             "posthoc": stats.posthoc_difficulty(frames, cfg.padjust, cfg.authors_tukey),
             "spearman": stats.spearman_confidence(frames),
+            "rm_corr": stats.rm_corr_confidence(frames),
         },
         "mixed": {f: stats.mixed_anova(frames, f) for f in stats.BETWEEN_FACTORS},
         "likert": stats.likert_tests(frames, cfg.padjust),
+        "ordinal": ordinal_models(frames),
         "exploratory": stats.exploratory(frames),
     }
 
@@ -126,7 +147,9 @@ def analyze(
     disable = None if progress is None else not progress
     with tqdm(total=4, desc="analyze", unit="step", file=sys.stderr, disable=disable) as bar:
         bar.set_postfix_str("load")
-        export = load_export(export_dir)
+        from cfteach.analysis import closed_loop  # closed_loop participants: their own section
+        with closed_loop.paper_only(export_dir) as paper_dir:
+            export = load_export(paper_dir)
         bar.update()
         bar.set_postfix_str("statistics")
         results, frames = compute_results(export, cfg, str(export_dir), note)
@@ -141,11 +164,14 @@ def analyze(
         bar.update()
         bar.set_postfix_str("report")
         results["figures"] = {k: [f"figures/{n}" for n in v] for k, v in figures.items()}
+        if (cl := closed_loop.compare(export_dir)) is not None:
+            results["closed_loop"] = to_jsonable(cl)
         (out / "results.json").write_text(
             json.dumps(results, indent=2, allow_nan=False) + "\n", encoding="utf-8"
         )
         from cfteach.analysis.report import write_report
 
         write_report(results, figures, out)
+        closed_loop.add_to_report(results.get("closed_loop"), out)
         bar.update()
     return results

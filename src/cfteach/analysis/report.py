@@ -10,6 +10,7 @@ import html
 from pathlib import Path
 from typing import Any
 
+from cfteach.analysis.descriptives import CONDITION_LABELS
 from cfteach.analysis.io import DIFFICULTIES, LIKERT_ITEMS
 
 FACTOR_TITLES = {
@@ -17,7 +18,8 @@ FACTOR_TITLES = {
     "feature_scaffolding": ("H3", "feature scaffolding"),
     "condition": ("H4", "condition (4 levels)"),
 }
-LEVEL_NAMES = {
+LEVEL_NAMES: dict[str, dict[str, str]] = {
+    "condition": CONDITION_LABELS,
     "counterfactual": {"0": "no counterfactual", "1": "counterfactual"},
     "feature_scaffolding": {"0": "no feature scaffolding", "1": "feature scaffolding"},
 }
@@ -151,9 +153,10 @@ def _effects_table(doc: Doc, res: dict[str, Any]) -> None:
                 fmt_p(e["p"]),
                 fmt_p(e["p_gg"]) if e["p_gg"] is not None else "",
                 fmt_num(e["np2"], 3, lead=False),
+                _ci_text(e.get("np2_ci95"), 3),
             ]
         )
-    doc.table(["Source", "df1", "df2", "F", "p", "p (GG)", "ηp²"], rows)
+    doc.table(["Source", "df1", "df2", "F", "p", "p (GG)", "ηp²", "ηp² 95% CI"], rows)
 
 
 def _means_table(doc: Doc, factor: str, means: list[dict[str, Any]]) -> None:
@@ -204,13 +207,22 @@ def _mwu_sentence(name_x: str, name_y: str, r: dict[str, Any]) -> str:
     )
 
 
+def _within_test(e: dict[str, Any]) -> str:
+    """A within term's F: GG-corrected df and p when Mauchly's test rejects sphericity."""
+    mp, eps = e.get("mauchly_p"), e.get("eps_gg")
+    if mp is None or mp >= 0.05 or eps is None or e.get("p_gg") is None:
+        return fmt_F(e["df1"], e["df2"], e["F"], e["p"])
+    gg = fmt_F(e["df1"] * eps, e["df2"] * eps, e["F"], e["p_gg"])
+    return f"{gg} (Greenhouse-Geisser; sphericity rejected, {fmt_p(mp)})"
+
+
 def _mixed_section(doc: Doc, factor: str, label: str, res: dict[str, Any]) -> None:
     inter, betw = res["effects"]["interaction"], res["effects"]["between"]
     doc.p(
         f"Two-way mixed ANOVA (N = {res['n_participants']}; "
         + ", ".join(f"{_level(factor, k)}: {v}" for k, v in res["n_by_level"].items())
         + "). Interaction: "
-        + fmt_F(inter["df1"], inter["df2"], inter["F"], inter["p"])
+        + _within_test(inter)
         + f"; main effect of {label}: "
         + fmt_F(betw["df1"], betw["df2"], betw["F"], betw["p"])
         + "."
@@ -221,14 +233,11 @@ def _mixed_section(doc: Doc, factor: str, label: str, res: dict[str, Any]) -> No
     doc.p(
         "Simple effects at each difficulty: Tukey HSD between groups on that difficulty's "
         "participant means"
-        + (
-            " (two groups: equal to Student's t-test); the last column adjusts across the "
-            "three difficulties (Holm)."
-            if two
-            else "; corrected within each difficulty, not across the three."
-        )
+        + (" (two groups: equal to Student's t-test)" if two else "")
+        + "; the last column adjusts each comparison across the three difficulties (Holm), "
+        "and that is the p to use."
     )
-    _tukey_table(doc, factor, res["simple_effects"]["rows"], with_diff=True, holm=two)
+    _tukey_table(doc, factor, res["simple_effects"]["rows"], with_diff=True, holm=True)
     if "overall_pairwise" in res:
         doc.p(
             "Overall pairwise comparison of conditions (Tukey HSD on each participant's "
@@ -262,15 +271,17 @@ def _likert_section(doc: Doc, factor: str, lk: dict[str, Any]) -> None:
                 f"{name}: Kruskal-Wallis H({fmt_df(kw['df'])}) = {fmt_num(kw['H'])}, "
                 f"{fmt_p(kw['p'])}, ε² = {fmt_num(kw['epsilon_sq'], 3, lead=False)}, "
                 f"N = {kw['n']}; medians "
-                + ", ".join(f"{c} {fmt_num(m, 1)}" for c, m in kw["medians"].items())
+                + ", ".join(
+                    f"{_level('condition', c)} {fmt_num(m, 1)}" for c, m in kw["medians"].items()
+                )
                 + "."
             )
             doc.table(
                 ["A", "B", "U", "p (unc.)", f"p ({lk['padjust']})", "Mdn A", "Mdn B"],
                 [
                     [
-                        r["A"],
-                        r["B"],
+                        _level("condition", r["A"]),
+                        _level("condition", r["B"]),
                         fmt_num(r["U"], 1),
                         fmt_p(r["p"]),
                         fmt_p(r["p_corr"]),
@@ -280,6 +291,353 @@ def _likert_section(doc: Doc, factor: str, lk: dict[str, Any]) -> None:
                     for r in lk[item]["condition_pairwise"]["rows"]
                 ],
             )
+
+
+def _h1_section(doc: Doc, h1: dict[str, Any], figures: dict[str, list[str]]) -> None:
+    rm = h1["rm_anova"]
+    doc.h(2, "H1: test difficulty")
+    if "skipped" in rm:
+        doc.p(f"Repeated-measures ANOVA not computed: {rm['skipped']}.")
+    else:
+        _rm_anova_text(doc, rm)
+    ph = h1["posthoc"]["paired"]
+    if "skipped" in ph:
+        doc.p(f"Post hoc paired t-tests not computed: {ph['skipped']}.")
+    else:
+        _posthoc_tables(doc, h1)
+    if "difficulty" in figures:
+        doc.img(f"figures/{figures['difficulty'][0]}", "Proportion optimal by test difficulty")
+    sp = h1["spearman"]
+    if "skipped" in sp:
+        doc.p(f"Spearman correlation of confidence with difficulty not computed: {sp['skipped']}.")
+    else:
+        _spearman_text(doc, sp)
+    _rm_corr_text(doc, h1.get("rm_corr"))
+    if "confidence" in figures:
+        doc.img(f"figures/{figures['confidence'][0]}", "Confidence by test difficulty")
+
+
+def _rm_anova_text(doc: Doc, rm: dict[str, Any]) -> None:
+    doc.p(
+        "A one-way repeated-measures ANOVA on the proportion of optimal responses: "
+        + fmt_F(rm["df1"], rm["df2"], rm["F"], rm["p"])
+        + f", η²G = {fmt_num(rm['ng2'], 2, lead=False)} (N = {rm['n_participants']} "
+        f"participants, {rm['n_observations']} test responses). Mauchly's W = "
+        f"{fmt_num(rm['mauchly_W'])}, {fmt_p(rm['mauchly_p'])}; Greenhouse-Geisser "
+        f"ε = {fmt_num(rm['eps_gg'])}, corrected {fmt_p(rm['p_gg'])}." + _gg_sentence(rm)
+    )
+    doc.table(
+        ["Difficulty", "N", "M", "SD", "95% CI"],
+        [
+            [
+                d,
+                str(m["n"]),
+                fmt_num(m["mean"]),
+                fmt_num(m["sd"]),
+                f"[{fmt_num(m['ci95'][0])}, {fmt_num(m['ci95'][1])}]",
+            ]
+            for d, m in rm["means"].items()
+        ],
+    )
+
+
+def _gg_sentence(rm: dict[str, Any]) -> str:
+    """When Mauchly rejects sphericity, the GG-corrected test is the one to report."""
+    mp, eps = rm.get("mauchly_p"), rm.get("eps_gg")
+    if mp is None or mp >= 0.05 or eps is None:
+        return ""
+    return (
+        " Sphericity is rejected, so the test to report is the GG-corrected "
+        + fmt_F(rm["df1"] * eps, rm["df2"] * eps, rm["F"], rm["p_gg"])
+        + " (the paper reported the uncorrected df)."
+    )
+
+
+def _posthoc_tables(doc: Doc, h1: dict[str, Any]) -> None:
+    ph = h1["posthoc"]["paired"]
+    doc.p(f"Post hoc: paired t-tests (within-subjects), {ph['padjust']} correction.")
+    doc.table(
+        [
+            "A",
+            "B",
+            "M A",
+            "M B",
+            f"t({fmt_df(ph['rows'][0]['dof']) if ph['rows'] else ''})",
+            "p (unc.)",
+            f"p ({ph['padjust']})",
+            "Hedges g [95% CI]",
+        ],
+        [
+            [
+                r["A"],
+                r["B"],
+                fmt_num(r["mean_A"]),
+                fmt_num(r["mean_B"]),
+                fmt_num(r["T"]),
+                fmt_p(r["p_unc"]),
+                fmt_p(r["p_corr"]),
+                fmt_num(r["hedges"]) + " " + _ci_text(r.get("hedges_ci95"), 2),
+            ]
+            for r in ph["rows"]
+        ],
+    )
+    at = h1["posthoc"].get("authors_tukey")
+    if at:
+        doc.p(
+            "For comparison, the **authors' variant**: Tukey HSD treating the "
+            f"{at['n_observations']} participant × difficulty means as independent groups "
+            "(it ignores the pairing, so its p values are not valid for a within factor)."
+        )
+        doc.table(
+            ["A", "B", "M A", "M B", "T", "p (Tukey)"],
+            [
+                [
+                    r["A"],
+                    r["B"],
+                    fmt_num(r["mean_A"]),
+                    fmt_num(r["mean_B"]),
+                    fmt_num(r["T"]),
+                    fmt_p(r["p_tukey"]),
+                ]
+                for r in at["rows"]
+            ],
+        )
+
+
+def _ci_text(ci: list | None, digits: int) -> str:
+    if not ci or ci[0] is None:
+        return ""
+    return f"[{fmt_num(ci[0], digits, lead=False)}, {fmt_num(ci[1], digits, lead=False)}]"
+
+
+def _rm_corr_text(doc: Doc, rc: dict[str, Any] | None) -> None:
+    if not rc:
+        return
+    if "skipped" in rc:
+        doc.p(f"Repeated-measures correlation not computed: {rc['skipped']}.")
+        return
+    doc.p(
+        "At the right level, the repeated-measures correlation (each participant's three "
+        "cells as repeated measures of one person): "
+        f"r_rm({fmt_df(rc['dof'])}) = {fmt_num(rc['r'], 2, lead=False)}, 95% CI "
+        f"{_ci_text(rc['ci95'], 2)}, {fmt_p(rc['p'])}, {rc['n_participants']} participants. "
+        "The paper used the Spearman correlation above, which treats the 3N cells as "
+        "independent observations."
+    )
+
+
+def _spearman_text(doc: Doc, sp: dict[str, Any]) -> None:
+    doc.p(
+        "Spearman's rank correlation of confidence (median per participant × difficulty) "
+        f"with difficulty: r_s = {fmt_num(sp['r'], 2, lead=False)}, {fmt_p(sp['p'])}, "
+        f"N = {sp['n']}. Median confidence: "
+        + ", ".join(
+            f"{d} {fmt_num(v, 1)}" for d, v in sp["confidence_median_by_difficulty"].items()
+        )
+        + "."
+    )
+
+
+TERM_LABELS = {
+    "counterfactual": "Counterfactual (CF)",
+    "feature_scaffolding": "Feature scaffolding (FS)",
+    "difficulty": "Difficulty",
+    "counterfactual:feature_scaffolding": "CF × FS",
+    "counterfactual:difficulty": "CF × difficulty",
+    "feature_scaffolding:difficulty": "FS × difficulty",
+    "counterfactual:feature_scaffolding:difficulty": "CF × FS × difficulty",
+}
+
+
+def _full_anova_section(doc: Doc, results: dict[str, Any]) -> None:
+    doc.h(2, "Full factorial model: counterfactual × feature scaffolding × difficulty")
+    terms = results.get("full_anova") or []
+    if not terms:
+        doc.p(f"Not computed: {results.get('full_anova_skipped') or 'no data'}.")
+        return
+    detail = results.get("full_anova_detail", {})
+    sph = detail.get("sphericity", {})
+    rejected = bool(sph.get("rejected"))
+    doc.p(
+        "One 2 × 2 (between) × 3 (within) split-plot ANOVA with all seven terms (type III "
+        f"sums of squares, sum-to-zero coding; N = {len(results['full_anova_participants'])} "
+        "participants with all three difficulties). Mauchly's test of sphericity: "
+        f"W = {fmt_num(sph.get('mauchly_W'), 3)}, {fmt_p(sph.get('mauchly_p'))}; "
+        f"Greenhouse-Geisser ε = {fmt_num(sph.get('eps_gg'), 3)}. "
+        + (
+            "Sphericity is rejected, so the within terms are reported with the GG-corrected "
+            "df and p."
+            if rejected
+            else "Sphericity is not rejected; the uncorrected within tests are used (the GG "
+            "p is shown alongside)."
+        )
+        + " The paper ran the three separate two-way models below instead, which cannot test "
+        "CF × FS or the three-way term."
+    )
+    rows = []
+    for t in terms:
+        gg = rejected and t.get("df1_gg") is not None
+        df1, df2, p = (t["df1_gg"], t["df2_gg"], t["p_gg"]) if gg else (t["df1"], t["df2"], t["p"])
+        rows.append(
+            [
+                TERM_LABELS.get(t["term"], t["term"]),
+                fmt_F(df1, df2, t["F"], p),
+                fmt_p(t["p_gg"]) if t["p_gg"] is not None else "",
+                fmt_num(t["eta2_partial"], 3, lead=False),
+                _ci_text(t.get("eta2_partial_ci95"), 3),
+            ]
+        )
+    doc.table(
+        ["Term", "Test" + (" (GG where within)" if rejected else ""), "p (GG)", "ηp²", "95% CI"],
+        rows,
+    )
+
+
+def _sensitivity_section(doc: Doc, sens: dict[str, Any] | None) -> None:
+    if not sens:
+        return
+    doc.h(2, "Sensitivity to the exclusions")
+    doc.p(
+        "The H1 ANOVA and the full model again, without the outlier and manual exclusions and "
+        "with the robust outlier rule; " + sens["note"] + "."
+    )
+    terms = list(TERM_LABELS)
+    rows = []
+    for v in sens["variants"]:
+        h1 = v.get("h1") or {}
+        h1_txt = (
+            "n/a" if h1.get("skipped") or not h1 else fmt_F(h1["df1"], h1["df2"], h1["F"], h1["p"])
+        )
+        full = v.get("full_anova") or {}
+        rows.append(
+            [
+                v["name"],
+                str(v["n_retained"]),
+                h1_txt,
+                *(fmt_p(full[t]["p"]) if t in full else "n/a" for t in terms),
+            ]
+        )
+    doc.table(["Exclusions", "N", "H1", *(TERM_LABELS[t] for t in terms)], rows)
+
+
+def _ordinal_section(doc: Doc, ordinal: dict[str, Any] | None) -> None:
+    if not ordinal:
+        return
+    doc.h(2, "Ordinal models of the ratings")
+    doc.p(
+        "Beside the paper's rank tests: every rating as one observation of a cumulative-logit "
+        "(proportional odds) model with cluster-robust SEs by participant. OR > 1: answers in "
+        "higher categories with the scaffolding (or at that difficulty vs the mean)."
+    )
+    rows = []
+    for name, res in ordinal.items():
+        label = name.replace("_", " ").capitalize()
+        if "skipped" in res:
+            rows.append([label, "not computed: " + res["skipped"], "", ""])
+            continue
+        for t in res["terms"]:
+            rows.append(
+                [
+                    f"{label} (N = {res['n_participants']}, {res['n_observations']} ratings)",
+                    _glmm_term(t["term"]),
+                    f"{fmt_num(t['odds_ratio'])} [{fmt_num(t['ci_low'])}, {fmt_num(t['ci_high'])}]",
+                    fmt_p(t["p"]),
+                ]
+            )
+    doc.table(["Rating", "Term", "OR [95% CI]", "p"], rows)
+
+
+def _glmm_term(term: str) -> str:
+    """'counterfactual:difficulty[high]' -> 'CF × difficulty (high vs mean)'."""
+    short = {
+        "counterfactual": "CF",
+        "feature_scaffolding": "FS",
+        "domain_position": "domain position",
+    }
+    parts = []
+    for part in term.split(":"):
+        if "[" in part:
+            name, lvl = part.rstrip("]").split("[")
+            parts.append(f"{name} ({lvl} vs mean)")
+        else:
+            parts.append(short.get(part, part))
+    return " × ".join(parts)
+
+
+def _glmm_section(doc: Doc, g: dict[str, Any] | None) -> None:
+    if not g:
+        return
+    doc.h(2, "Trial-level logistic mixed model")
+    if "skipped" in g:
+        doc.p(f"Not computed: {g['skipped']}.")
+        return
+    sd = g["random_effect_sd"]
+    doc.p(
+        f"Each of the {g['n_observations']} answers ({g['n_participants']} participants, "
+        f"{g['n_items']} test items) as one binary trial: {g['method']}; fixed effects "
+        "counterfactual × feature scaffolding × difficulty with domain and domain position "
+        f"as covariates. Random-intercept SDs (logit): participant {fmt_num(sd['participant'])}"
+        f", item {fmt_num(sd['item'])}. Coding: {g['coding']}. Wald 95% CIs."
+        + ("" if g.get("converged", True) else " **The fit did not converge.**")
+    )
+    doc.table(
+        ["Term", "OR", "95% CI", "p"],
+        [
+            [
+                _glmm_term(t["term"]),
+                fmt_num(t["odds_ratio"]),
+                f"[{fmt_num(t['ci_low'])}, {fmt_num(t['ci_high'])}]",
+                fmt_p(t["p"]),
+            ]
+            for t in g["terms"]
+        ],
+    )
+
+
+def _descriptives_section(doc: Doc, desc: dict[str, Any] | None) -> None:
+    if not desc:
+        return
+    doc.h(2, "Descriptives per condition")
+    doc.p(
+        "Means (SD) over participants; proportion optimal is each participant's share of "
+        "optimal answers; confidence 1-5; Likert medians of the per-participant medians."
+    )
+    rows = []
+    for r in desc["rows"]:
+        genders = ", ".join(f"{k} {v}" for k, v in r["gender"].items()) or "n/a"
+        rows.append(
+            [
+                r["label"],
+                str(r["n"]),
+                _m_sd(r["proportion_optimal"]),
+                *(_m_sd(r["by_difficulty"][d]) for d in DIFFICULTIES),
+                _m_sd(r["confidence"]),
+                *(fmt_num(r["likert_median"][it], 1) for it in LIKERT_ITEMS),
+                _m_sd(r["age"], 1),
+                genders,
+            ]
+        )
+    doc.table(
+        [
+            "Condition",
+            "N",
+            "Optimal",
+            *(f"Optimal ({d})" for d in DIFFICULTIES),
+            "Confidence",
+            "Informativeness (Mdn)",
+            "Mental effort (Mdn)",
+            "Age",
+            "Gender",
+        ],
+        rows,
+    )
+
+
+def _m_sd(m: dict[str, Any], digits: int = 2) -> str:
+    if m["mean"] is None:
+        return "n/a"
+    sd = f" ({fmt_num(m['sd'], digits)})" if m["sd"] is not None else ""
+    return fmt_num(m["mean"], digits) + sd
 
 
 def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Doc:
@@ -298,7 +656,11 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
     doc.h(2, "Participants and exclusions")
     doc.p(
         f"{part['n_sessions']} sessions in the export; {part['n_retained']} participants "
-        f"retained ({', '.join(f'{c}: {n}' for c, n in part['retained_by_condition'].items())})."
+        "retained ("
+        + ", ".join(
+            f"{_level('condition', c)}: {n}" for c, n in part["retained_by_condition"].items()
+        )
+        + ")."
     )
     exc = results["exclusions"]
     if exc:
@@ -328,110 +690,34 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
     }
     doc.p("Rules and thresholds: " + ", ".join(f"{k} = {v}" for k, v in rules.items()) + ".")
 
+    _descriptives_section(doc, results.get("descriptives"))
+
     icc = results["icc"]
     doc.h(2, "Consistency across domains (ICC)")
-    doc.p(
-        f"Mean-rating (k = {icc['k']}), two-way mixed, consistency ICC over "
-        f"{icc['n_targets']} participants: ICC = {fmt_num(icc['icc'])}, 95% CI "
-        f"[{fmt_num(icc['ci95'][0])}, {fmt_num(icc['ci95'][1])}], "
-        + fmt_F(icc["df1"], icc["df2"], icc["F"], icc["p"])
-        + "."
-    )
-    doc.table(
-        ["Domain", "M proportion optimal"],
-        [[d, fmt_num(v)] for d, v in icc["per_domain_mean"].items()],
-    )
-
-    h1 = results["h1"]
-    rm = h1["rm_anova"]
-    doc.h(2, "H1: test difficulty")
-    doc.p(
-        "A one-way repeated-measures ANOVA on the proportion of optimal responses: "
-        + fmt_F(rm["df1"], rm["df2"], rm["F"], rm["p"])
-        + f", η²G = {fmt_num(rm['ng2'], 2, lead=False)} (N = {rm['n_participants']} "
-        f"participants, {rm['n_observations']} test responses). Mauchly's W = "
-        f"{fmt_num(rm['mauchly_W'])}, {fmt_p(rm['mauchly_p'])}; Greenhouse-Geisser "
-        f"ε = {fmt_num(rm['eps_gg'])}, corrected {fmt_p(rm['p_gg'])}."
-    )
-    doc.table(
-        ["Difficulty", "N", "M", "SD", "95% CI"],
-        [
-            [
-                d,
-                str(m["n"]),
-                fmt_num(m["mean"]),
-                fmt_num(m["sd"]),
-                f"[{fmt_num(m['ci95'][0])}, {fmt_num(m['ci95'][1])}]",
-            ]
-            for d, m in rm["means"].items()
-        ],
-    )
-    ph = h1["posthoc"]["paired"]
-    doc.p(f"Post hoc: paired t-tests (within-subjects), {ph['padjust']} correction.")
-    doc.table(
-        [
-            "A",
-            "B",
-            "M A",
-            "M B",
-            f"t({fmt_df(ph['rows'][0]['dof']) if ph['rows'] else ''})",
-            "p (unc.)",
-            f"p ({ph['padjust']})",
-            "Hedges g",
-        ],
-        [
-            [
-                r["A"],
-                r["B"],
-                fmt_num(r["mean_A"]),
-                fmt_num(r["mean_B"]),
-                fmt_num(r["T"]),
-                fmt_p(r["p_unc"]),
-                fmt_p(r["p_corr"]),
-                fmt_num(r["hedges"]),
-            ]
-            for r in ph["rows"]
-        ],
-    )
-    at = h1["posthoc"].get("authors_tukey")
-    if at:
+    if "skipped" in icc:
+        doc.p(f"ICC not computed: {icc['skipped']}.")
+    else:
         doc.p(
-            "For comparison, the **authors' variant**: Tukey HSD treating the "
-            f"{at['n_observations']} participant × difficulty means as independent groups "
-            "(it ignores the pairing, so its p values are not valid for a within factor)."
+            f"Mean-rating (k = {icc['k']}), two-way mixed, consistency ICC over "
+            f"{icc['n_targets']} participants: ICC = {fmt_num(icc['icc'])}, 95% CI "
+            f"[{fmt_num(icc['ci95'][0])}, {fmt_num(icc['ci95'][1])}], "
+            + fmt_F(icc["df1"], icc["df2"], icc["F"], icc["p"])
+            + "."
         )
         doc.table(
-            ["A", "B", "M A", "M B", "T", "p (Tukey)"],
-            [
-                [
-                    r["A"],
-                    r["B"],
-                    fmt_num(r["mean_A"]),
-                    fmt_num(r["mean_B"]),
-                    fmt_num(r["T"]),
-                    fmt_p(r["p_tukey"]),
-                ]
-                for r in at["rows"]
-            ],
+            ["Domain", "M proportion optimal"],
+            [[d, fmt_num(v)] for d, v in icc["per_domain_mean"].items()],
         )
-    if "difficulty" in figures:
-        doc.img(f"figures/{figures['difficulty'][0]}", "Proportion optimal by test difficulty")
-    sp = h1["spearman"]
-    doc.p(
-        "Spearman's rank correlation of confidence (median per participant × difficulty) "
-        f"with difficulty: r_s = {fmt_num(sp['r'], 2, lead=False)}, {fmt_p(sp['p'])}, "
-        f"N = {sp['n']}. Median confidence: "
-        + ", ".join(
-            f"{d} {fmt_num(v, 1)}" for d, v in sp["confidence_median_by_difficulty"].items()
-        )
-        + "."
-    )
-    if "confidence" in figures:
-        doc.img(f"figures/{figures['confidence'][0]}", "Confidence by test difficulty")
+
+    _h1_section(doc, results["h1"], figures)
+
+    _full_anova_section(doc, results)
+    _sensitivity_section(doc, results.get("sensitivity"))
+    _glmm_section(doc, results.get("glmm"))
 
     for factor, (hyp, label) in FACTOR_TITLES.items():
         res = results["mixed"][factor]
-        doc.h(2, f"{hyp}: difficulty × {label}")
+        doc.h(2, f"{hyp}: difficulty × {label} (the paper's two-way analysis)")
         if "skipped" in res:
             doc.p(f"Mixed ANOVA skipped: {res['skipped']}.")
         else:
@@ -449,6 +735,7 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
         )
     if "likert" in figures:
         doc.img(f"figures/{figures['likert'][0]}", "Likert ratings by condition")
+    _ordinal_section(doc, results.get("ordinal"))
 
     doc.h(2, "Exploratory measures")
     for res in results["exploratory"].values():

@@ -18,6 +18,7 @@ import pingouin as pg
 from scipy import stats as sps
 
 from cfteach.analysis.aggregate import Frames
+from cfteach.analysis.effects import eta2_partial_ci, hedges_ci
 from cfteach.analysis.io import CONDITIONS, DIFFICULTIES, LIKERT_ITEMS
 
 BETWEEN_FACTORS = ("counterfactual", "feature_scaffolding", "condition")
@@ -86,9 +87,34 @@ def mean_ci(values: pd.Series | np.ndarray, level: float = 0.95) -> dict[str, fl
     return {"mean": m, "sd": sd, "n": n, "ci95": [m - half, m + half]}
 
 
+def skipped(test: str, why: str) -> dict[str, Any]:
+    """The entry of a test the data cannot support (a pilot, a missing group, no ratings)."""
+    return {"test": test, "skipped": why}
+
+
+def complete_cells(cells: pd.DataFrame) -> pd.DataFrame:
+    """The participant x difficulty cells of participants who have all three difficulties.
+
+    Repeated-measures tests drop anyone else; doing it here means the N we report is the
+    N the test used.
+    """
+    n = cells.dropna(subset=["optimal"]).groupby("participant_id", observed=True)["difficulty"]
+    full = n.nunique()
+    keep = full.index[full == len(DIFFICULTIES)]
+    return cells[cells["participant_id"].isin(keep)]
+
+
 def icc_domains(frames: Frames) -> dict[str, Any]:
     """ICC(C,k) = ICC3k: two-way mixed, consistency, mean of k raters (domains)."""
     dm = frames.domain_means
+    wide = dm.pivot_table(index="participant_id", columns="domain", values="optimal").dropna()
+    if len(wide) < 2 or wide.shape[1] < 2:
+        return skipped(
+            "ICC(C,k)",
+            f"needs at least 2 participants with every domain and 2 domains (have "
+            f"{len(wide)} participant(s), {wide.shape[1]} domain(s))",
+        )
+    dm = dm[dm["participant_id"].isin(wide.index)]
     res = pg.intraclass_corr(
         data=dm, targets="participant_id", raters="domain", ratings="optimal", nan_policy="omit"
     )
@@ -111,6 +137,26 @@ def icc_domains(frames: Frames) -> dict[str, Any]:
     }
 
 
+def within_subject_ci(cells: pd.DataFrame, dv: str = "optimal", level: float = 0.95) -> dict:
+    """Cousineau-Morey within-subject CIs per difficulty: each participant's values are
+    centred on their own mean (plus the grand mean), the t-interval of those normalised
+    values is widened by sqrt(J / (J - 1)) (Morey 2008). Between-person differences, which
+    a within factor's tests remove, no longer inflate the bars."""
+    wide = cells.pivot_table(index="participant_id", columns="difficulty", values=dv, observed=True)
+    wide = wide.reindex(columns=list(DIFFICULTIES)).dropna()
+    n, j = wide.shape
+    out: dict[str, dict[str, float | None]] = {}
+    if n == 0:
+        return {d: {"mean": None, "half": None, "n": 0} for d in DIFFICULTIES}
+    norm = wide.sub(wide.mean(axis=1), axis=0) + float(wide.to_numpy().mean())
+    t = float(sps.t.ppf(0.5 + level / 2, n - 1)) if n > 1 else float("nan")
+    for d in DIFFICULTIES:
+        sd = float(norm[d].std(ddof=1)) if n > 1 else float("nan")
+        half = t * sd / math.sqrt(n) * math.sqrt(j / (j - 1)) if n > 1 else None
+        out[d] = {"mean": float(wide[d].mean()), "half": _num(half), "n": int(n)}
+    return out
+
+
 def difficulty_means(cells: pd.DataFrame, dv: str = "optimal") -> dict[str, Any]:
     """Mean with 95% CI of `dv` per difficulty (over participants)."""
     return {d: mean_ci(cells.loc[cells["difficulty"] == d, dv]) for d in DIFFICULTIES}
@@ -122,7 +168,13 @@ def rm_anova_difficulty(frames: Frames) -> dict[str, Any]:
     Mauchly's test and the Greenhouse-Geisser correction come with it; the F test reported
     in the paper's style uses the uncorrected df (as the paper did), the GG p is alongside.
     """
-    cells = frames.cells
+    cells = complete_cells(frames.cells)
+    n = int(cells["participant_id"].nunique())
+    test = "one-way repeated-measures ANOVA (pingouin.rm_anova)"
+    if n < len(DIFFICULTIES):  # pingouin always runs Mauchly's test: it needs n - 1 >= k - 1
+        return skipped(
+            test, f"needs at least 3 participants with all three difficulties (have {n})"
+        )
     res = pg.rm_anova(
         data=cells,
         dv="optimal",
@@ -132,8 +184,9 @@ def rm_anova_difficulty(frames: Frames) -> dict[str, Any]:
         effsize="ng2",
     )
     r = res.iloc[0]
+    used = frames.tests["participant_id"].isin(set(cells["participant_id"]))
     return {
-        "test": "one-way repeated-measures ANOVA (pingouin.rm_anova)",
+        "test": test,
         "F": _num(r["F"]),
         "df1": _num(r["ddof1"]),
         "df2": _num(r["ddof2"]),
@@ -144,8 +197,8 @@ def rm_anova_difficulty(frames: Frames) -> dict[str, Any]:
         "mauchly_p": _num(_get(r, "p_spher")),
         "sphericity": None if r.get("sphericity") is None else bool(r.get("sphericity")),
         "ng2": _num(r.get("ng2")),
-        "n_participants": int(cells["participant_id"].nunique()),
-        "n_observations": int(len(frames.tests)),
+        "n_participants": n,
+        "n_observations": int(used.sum()),
         "means": difficulty_means(cells),
     }
 
@@ -159,7 +212,11 @@ def posthoc_difficulty(
     which ignores that the three means come from the same person; it is kept, labelled, so
     the paper's numbers can be compared.
     """
-    cells = frames.cells.copy()
+    cells = complete_cells(frames.cells).copy()
+    n = int(cells["participant_id"].nunique())
+    if n < 2:
+        why = f"needs at least 2 participants with all three difficulties (have {n})"
+        return {"paired": skipped("paired t-tests", why)}
     cells["difficulty"] = cells["difficulty"].astype(str)
     paired = pg.pairwise_tests(
         data=cells,
@@ -183,6 +240,7 @@ def posthoc_difficulty(
                 "p_unc": _num(_get(r, "p_unc")),
                 "p_corr": _num(_get(r, "p_corr", _get(r, "p_unc"))),
                 "hedges": _num(r["hedges"]),
+                "hedges_ci95": hedges_ci(_num(r["hedges"]), n, n, paired=True),
             }
         )
     out: dict[str, Any] = {
@@ -220,10 +278,20 @@ def posthoc_difficulty(
 def spearman_confidence(frames: Frames) -> dict[str, Any]:
     """H1: Spearman correlation of (median) confidence with difficulty (0/1/2), n = 3N."""
     c = frames.cells.dropna(subset=["confidence"])
+    test = "Spearman rank correlation (pingouin.corr)"
+    if c.empty:
+        return skipped(test, "no confidence ratings in the export (the column is optional)")
+    n = int(c["participant_id"].nunique())
+    if n < 3 or c["confidence"].nunique() < 2 or c["difficulty_code"].nunique() < 2:
+        return skipped(
+            test,
+            f"needs at least 3 participants and varying confidence (have {n} participant(s), "
+            f"{c['confidence'].nunique()} distinct value(s))",
+        )
     res = pg.corr(c["difficulty_code"], c["confidence"], method="spearman")
     r = res.iloc[0]
     return {
-        "test": "Spearman rank correlation (pingouin.corr)",
+        "test": test,
         "r": _num(r["r"]),
         "p": _num(_get(r, "p_val")),
         "ci95": _ci(_get(r, "CI95")),
@@ -231,6 +299,47 @@ def spearman_confidence(frames: Frames) -> dict[str, Any]:
         "confidence_median_by_difficulty": {
             d: _num(c.loc[c["difficulty"] == d, "confidence"].median()) for d in DIFFICULTIES
         },
+    }
+
+
+def rm_corr_confidence(frames: Frames) -> dict[str, Any]:
+    """H1 at the right level: the repeated-measures correlation of confidence with
+    difficulty (Bakdash & Marusich, 2017; checked against pingouin.rm_corr). It uses each
+    participant's three cells as repeated measures of one person, where the paper's
+    Spearman treated the 3N cells as independent observations."""
+    test = "repeated-measures correlation (Bakdash & Marusich)"
+    c = frames.cells.dropna(subset=["confidence"])
+    if c.empty:
+        return skipped(test, "no confidence ratings in the export (the column is optional)")
+    per = c.groupby("participant_id", observed=True)["difficulty_code"].nunique()
+    c = c[c["participant_id"].isin(per.index[per >= 2])]
+    n = int(c["participant_id"].nunique())
+    if n < 3 or len(c) - n - 1 < 2:
+        return skipped(
+            test, f"needs at least 3 participants with two or more difficulties (have {n})"
+        )
+    # Bakdash & Marusich's r_rm is the correlation of the within-person deviations (the
+    # ANCOVA pingouin.rm_corr fits gives the same number, but its participant dummies make it
+    # cubic in N: minutes for 3000 people); CI as pingouin computes it (Fisher z, n = dof + 2)
+    x = c["difficulty_code"].astype(float)
+    y = c["confidence"].astype(float)
+    xc = x - x.groupby(c["participant_id"], observed=True).transform("mean")
+    yc = y - y.groupby(c["participant_id"], observed=True).transform("mean")
+    dof = int(len(c) - n - 1)
+    denom = math.sqrt(float(xc @ xc) * float(yc @ yc))
+    if denom == 0:
+        return skipped(test, "confidence or difficulty does not vary within participants")
+    r = float(xc @ yc) / denom
+    t = r * math.sqrt(dof / (1 - r * r)) if abs(r) < 1 else math.inf
+    ci = pg.compute_esci(stat=r, nx=dof + 2, eftype="pearson", decimals=6)
+    return {
+        "test": test,
+        "r": r,
+        "dof": float(dof),
+        "p": float(2 * sps.t.sf(abs(t), dof)),
+        "ci95": _ci(ci),
+        "n_participants": n,
+        "n_observations": int(len(c)),
     }
 
 
@@ -288,12 +397,12 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
 
     Simple effects: at each difficulty, Tukey HSD between the levels of `factor` on that
     difficulty's participant means (with two levels this is Student's t-test). These p are
-    corrected within a difficulty (Tukey) but not across the three difficulties; for the
-    two-level factors a Holm adjustment across the three is given as `p_holm_across`.
+    corrected within a difficulty (Tukey); `p_holm_across` adds Holm's correction across the
+    three difficulties for each pair (the family the simple-effects claim is about).
     """
     if factor not in BETWEEN_FACTORS:
         raise ValueError(f"factor must be one of {BETWEEN_FACTORS}, got {factor!r}")
-    cells = frames.cells.copy()
+    cells = complete_cells(frames.cells).copy()
     if factor == "condition":
         cells["condition"] = cells["condition"].astype(str)
     levels = usable_levels(cells, factor)
@@ -322,17 +431,24 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
             "p": _num(_get(r, "p_unc")),
             "p_gg": _num(_get(r, "p_GG_corr")),
             "eps_gg": _num(r.get("eps")),
+            "mauchly_p": _num(_get(r, "p_spher")),
             "np2": _num(r.get("np2")),
         }
+        e = effects[key]
+        e["np2_ci95"] = eta2_partial_ci(e["F"], e["df1"], e["df2"])
     simple = []
     for d in DIFFICULTIES:
         sub = cells[cells["difficulty"] == d]
         for row in _tukey_rows(sub, "optimal", factor):
             simple.append({"difficulty": d, **row})
-    if simple and factor != "condition":  # one comparison per difficulty: Holm over the 3
-        ps = [s["p_tukey"] if s["p_tukey"] is not None else np.nan for s in simple]
+    # the same comparison at the three difficulties is one family: Holm over the 3
+    by_pair: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for s in simple:
+        by_pair.setdefault((s["A"], s["B"]), []).append(s)
+    for rows in by_pair.values():
+        ps = [s["p_tukey"] if s["p_tukey"] is not None else np.nan for s in rows]
         _, adj = pg.multicomp(ps, method="holm")
-        for s, a in zip(simple, adj, strict=True):
+        for s, a in zip(rows, adj, strict=True):
             s["p_holm_across"] = _num(a)
     subj = cells.groupby(["participant_id", factor], observed=True)["optimal"].mean()
     subj = subj.reset_index()

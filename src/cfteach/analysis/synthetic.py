@@ -11,7 +11,12 @@ drawn from a logistic model with a random intercept per participant:
 
 where `dev` are the paper's observed means (0.86, 0.71, 0.40 for low/medium/high) turned into
 centred logits and `sign` is -1/0/+1 for low/medium/high: counterfactual scaffolding helps on
-hard tests and hurts on easy ones, the interaction the paper reports (H2).
+hard tests and hurts on easy ones, the interaction the paper reports (H2). Two more terms,
+off by default, plant what only the full 2 x 2 x 3 model can see:
+`cf_fs_interaction * (2cf - 1)(2fs - 1)` (a crossover: no marginal effect of either factor)
+and `proposed_interaction * cf * fs * sign[difficulty]` (a difficulty effect that only the
+two scaffoldings together have: a three-way interaction, which the paper's separate models
+report as cf x difficulty and fs x difficulty).
 """
 
 from __future__ import annotations
@@ -47,6 +52,8 @@ class SyntheticConfig:
     difficulty_effect: float = 1.0  # multiplies the paper's difficulty spread; 0 = no effect
     interaction: float = 0.35  # logit shift of counterfactual conditions, +high / -low
     feature_effect: float = 0.0
+    cf_fs_interaction: float = 0.0  # logit x (+1 same scaffolding / -1 one of the two)
+    proposed_interaction: float = 0.0  # logit x (-1, 0, +1)[difficulty], proposed only
     subject_sd: float = 0.6  # SD of the participants' random intercepts (logit)
     effort_cf: float = 0.5  # extra mental effort (Likert points) with counterfactuals
     replay_cf: float = 0.08  # extra expected replays per demonstration with counterfactuals
@@ -54,7 +61,7 @@ class SyntheticConfig:
     n_screened_out: int | None = None  # default: 5% of n_participants
     n_abandoned: int | None = None  # default: 3% of n_participants
     n_preview: int = 1
-    n_outliers: int = 2  # completed participants who answer far worse than everyone else
+    n_outliers: int | None = None  # far worse than everyone else; default min(2, N // 10)
 
     def __post_init__(self) -> None:
         if self.n_participants < 1:
@@ -63,8 +70,13 @@ class SyntheticConfig:
             v = getattr(self, name)
             if v is not None and v < 0:
                 raise ValueError(f"{name} must be >= 0, got {v}")
-        if self.n_outliers > self.n_participants:
+        if self.n_outliers is not None and self.n_outliers > self.n_participants:
             raise ValueError("n_outliers cannot exceed n_participants")
+
+    @property
+    def outliers(self) -> int:
+        """The number of planted outliers (a pilot of 1-9 participants gets none)."""
+        return min(2, self.n_participants // 10) if self.n_outliers is None else self.n_outliers
 
 
 def _hex(rng: np.random.Generator, n: int) -> str:
@@ -112,7 +124,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
         + ["abandoned"] * n_abandoned
         + ["preview"] * cfg.n_preview
     )
-    outliers = set(rng.choice(n, cfg.n_outliers, replace=False).tolist()) if n else set()
+    outliers = set(rng.choice(n, cfg.outliers, replace=False).tolist()) if n else set()
     order = rng.permutation(len(kinds))  # interleave kinds in arrival order
     t0 = datetime(2026, 1, 12, 14, 0, tzinfo=UTC)
     parts, tests, likert, demos = [], [], [], []
@@ -207,6 +219,8 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
                 + DOMAIN_SHIFT[dom]
                 + cfg.interaction * cf * SIGN[d_idx]
                 + cfg.feature_effect * fs
+                + cfg.cf_fs_interaction * (2 * cf - 1) * (2 * fs - 1)
+                + cfg.proposed_interaction * cf * fs * SIGN[d_idx]
             )
             correct = rng.random(m) < 1 / (1 + np.exp(-logit))
             gaps = rng.gamma(2.0, 0.12, m) * (8.0 if k in outliers else 1.0) + 0.02

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
+import click
 import typer
 
 _EXC = "Exclusions"
@@ -21,11 +22,31 @@ def _read_manual(path: Path) -> dict[str, str]:
 
     df = pd.read_csv(path, dtype=str, keep_default_na=False)
     if "participant_id" not in df.columns:
-        raise typer.BadParameter(f"{path}: missing column 'participant_id'")
+        raise ValueError(f"{path}: missing column 'participant_id'")
     reasons = df["reason"] if "reason" in df.columns else pd.Series(["manual"] * len(df))
     return {
         pid: (r or "manual exclusion") for pid, r in zip(df["participant_id"], reasons, strict=True)
     }
+
+
+def _usage_error(message: str) -> None:
+    """A one-line usage error (exit code 2), the same at any terminal width."""
+    typer.echo(f"Error: {message}", err=True)
+    raise typer.Exit(code=2)
+
+
+def unexpected_error(exc: BaseException, what: str) -> str:
+    """One line for an error we did not foresee: what failed, where, and how to report it.
+
+    The innermost frame of cfteach's own code and the file/column words of the message are
+    what a user needs to find the bad input; the traceback itself stays out of the terminal.
+    """
+    import traceback
+
+    frames = [f for f in traceback.extract_tb(exc.__traceback__) if "cfteach" in f.filename]
+    where = f" in {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
+    msg = " ".join(str(exc).split()) or "(no message)"
+    return f"{what} failed{where}: {type(exc).__name__}: {msg} (unexpected: please report it)"
 
 
 def analyze(
@@ -59,6 +80,13 @@ def analyze(
             rich_help_panel=_EXC,
         ),
     ] = 3.0,
+    aggregate_mad: Annotated[
+        float | None,
+        typer.Option(
+            help="Robust outlier rule: proportion correct below median - k MAD (default: off).",
+            rich_help_panel=_EXC,
+        ),
+    ] = None,
     item_sd: Annotated[
         float,
         typer.Option(
@@ -154,9 +182,9 @@ def analyze(
     Writes report.md, report.html, results.json and figures/ to --out; see docs/analysis.md.
     """
     if (export_dir is None) == (synthetic is None):
-        raise typer.BadParameter("give either EXPORT_DIR or --synthetic N (exactly one)")
+        _usage_error("give either EXPORT_DIR or --synthetic N (exactly one)")
     if export_only and synthetic is None:
-        raise typer.BadParameter("--export-only needs --synthetic")
+        _usage_error("--export-only needs --synthetic")
     from cfteach.cli._common import check_out_dir
 
     check_out_dir(out)  # before the work
@@ -171,29 +199,30 @@ def analyze(
     from cfteach.analysis import analyze as run
 
     note = None
-    if synthetic is not None:
-        scfg = SyntheticConfig(
-            n_participants=synthetic,
-            seed=seed,
-            difficulty_effect=difficulty_effect,
-            interaction=interaction,
-        )
-        export_dir = write_export(generate(scfg), out / "export")
-        note = (
-            f"**Simulated data**: `cfteach analyze --synthetic {synthetic} --seed {seed} "
-            f"--difficulty-effect {difficulty_effect:g} --interaction {interaction:g}` "
-            "(planted effects; see docs/analysis.md). Not the paper's data."
-        )
-        typer.echo(
-            f"wrote simulated export ({synthetic} participants, seed {seed}) to {export_dir}"
-        )
-        if export_only:
-            return
     try:
+        if synthetic is not None:
+            scfg = SyntheticConfig(
+                n_participants=synthetic,
+                seed=seed,
+                difficulty_effect=difficulty_effect,
+                interaction=interaction,
+            )
+            export_dir = write_export(generate(scfg), out / "export")
+            note = (
+                f"**Simulated data**: `cfteach analyze --synthetic {synthetic} --seed {seed} "
+                f"--difficulty-effect {difficulty_effect:g} --interaction {interaction:g}` "
+                "(planted effects; see docs/analysis.md). Not the paper's data."
+            )
+            typer.echo(
+                f"wrote simulated export ({synthetic} participants, seed {seed}) to {export_dir}"
+            )
+            if export_only:
+                return
         excl = ExclusionConfig(
             drop_preview=not keep_preview,
             expected_tests=expected_tests,
             aggregate_sd=aggregate_sd or None,
+            aggregate_mad=aggregate_mad or None,
             item_sd=item_sd or None,
             item_count_sd=item_count_sd or None,
             item_counts_among_nonzero=not counts_among_all,
@@ -208,20 +237,93 @@ def analyze(
             authors_tukey=authors_tukey,
         )
         results = run(export_dir, out, cfg, note=note)
+    except (typer.Exit, click.ClickException):
+        raise
     except (ExportError, ValueError) as exc:
-        typer.echo(f"Error: {exc}", err=True)
+        typer.echo("Error: " + " ".join(str(exc).split()), err=True)
         raise typer.Exit(code=2) from exc
+    except Exception as exc:  # noqa: BLE001 - no traceback may reach the user (see docs)
+        typer.echo(f"Error: {unexpected_error(exc, f'analysis of {export_dir}')}", err=True)
+        raise typer.Exit(code=1) from exc
     p = results["participants"]
     rm = results["h1"]["rm_anova"]
     from cfteach.analysis.report import fmt_F
 
+    h1 = (
+        f"not computed ({rm['skipped']})"
+        if "skipped" in rm
+        else fmt_F(rm["df1"], rm["df2"], rm["F"], rm["p"])
+    )
     typer.echo(
         f"{p['n_retained']} of {p['n_sessions']} sessions analysed ({p['n_excluded']} "
-        f"excluded). H1: {fmt_F(rm['df1'], rm['df2'], rm['F'], rm['p'])}."
+        f"excluded). H1: {h1}."
     )
     typer.echo(f"report: {out / 'report.html'}  ({out / 'report.md'}, {out / 'results.json'})")
 
 
+def power(
+    n: Annotated[
+        list[int] | None,
+        typer.Option("--n", help="Numbers of participants to simulate (repeat the option)."),
+    ] = None,
+    sims: Annotated[int, typer.Option(help="Simulated studies per N.", min=1)] = 100,
+    seed: Annotated[int, typer.Option(help="Seed of the first simulated study.")] = 0,
+    alpha: Annotated[float, typer.Option(help="Significance level.", min=0.0, max=1.0)] = 0.05,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Directory for the table and plot.")] = (
+        Path("power")
+    ),
+    difficulty_effect: Annotated[
+        float, typer.Option(help="Scale of the paper's difficulty effect.", rich_help_panel=_SYN)
+    ] = 1.0,
+    interaction: Annotated[
+        float,
+        typer.Option(help="Counterfactual x difficulty (logit).", rich_help_panel=_SYN),
+    ] = 0.35,
+    feature_effect: Annotated[
+        float, typer.Option(help="Feature scaffolding main effect (logit).", rich_help_panel=_SYN)
+    ] = 0.0,
+    cf_fs_interaction: Annotated[
+        float,
+        typer.Option(help="Counterfactual x feature crossover (logit).", rich_help_panel=_SYN),
+    ] = 0.0,
+    proposed_interaction: Annotated[
+        float,
+        typer.Option(
+            help="Difficulty effect of the proposed condition only (logit; a three-way effect).",
+            rich_help_panel=_SYN,
+        ),
+    ] = 0.0,
+) -> None:
+    """Power vs N for each hypothesis, by simulating the design at planted effect sizes.
+
+    Defaults plant the paper's reported difficulty means and the synthetic generator's
+    counterfactual x difficulty interaction; writes power.md, power.csv and power.png/.svg.
+    """
+    from cfteach.analysis.power import MIN_PARTICIPANTS, power_curve, write_power_report
+
+    ns = sorted(set(n or [24, 48, 96, 144, 216]))
+    if ns[0] < MIN_PARTICIPANTS:
+        _usage_error(
+            f"--n must be at least {MIN_PARTICIPANTS} (two participants per condition), got {ns[0]}"
+        )
+    effects = {
+        "difficulty_effect": difficulty_effect,
+        "interaction": interaction,
+        "feature_effect": feature_effect,
+        "cf_fs_interaction": cf_fs_interaction,
+        "proposed_interaction": proposed_interaction,
+    }
+    try:
+        table = power_curve(ns, sims, effects, seed=seed, alpha=alpha, progress=None)
+        paths = write_power_report(table, out, alpha)
+    except Exception as exc:  # noqa: BLE001 - no traceback may reach the user
+        typer.echo(f"Error: {unexpected_error(exc, 'power simulation')}", err=True)
+        raise typer.Exit(code=1) from exc
+    typer.echo(Path(paths["md"]).read_text(encoding="utf-8").rstrip())
+    typer.echo(f"wrote {paths['md']}, {paths['csv']}, {paths['png']}")
+
+
 def register(app: typer.Typer) -> None:
-    """Add `cfteach analyze` to the app."""
+    """Add `cfteach analyze` and `cfteach power` to the app."""
     app.command("analyze")(analyze)
+    app.command("power")(power)

@@ -14,9 +14,10 @@ study_app = typer.Typer(help="Create a study folder, export its data, watch its 
 DEFAULT_DOMAINS = ("delivery", "tiles", "skateboard")
 
 
-def _sources_from_dir(src: Path, domains: list[str]):  # noqa: ANN202
+def _sources_from_dir(src: Path, domains: list[str],  # noqa: ANN202
+                      conditions: list[str] | None = None):
     from cfteach.domains import load
-    from cfteach.study.build import CONDITIONS, DomainSource
+    from cfteach.study.build import CLOSED_LOOP, CONDITIONS, DomainSource
 
     out = []
     for name in domains:
@@ -25,7 +26,7 @@ def _sources_from_dir(src: Path, domains: list[str]):  # noqa: ANN202
             raise typer.BadParameter(f"{folder} does not exist (expected the output of "
                                      "`cfteach reproduce --out DIR`)")
         cur = {}
-        for cond in CONDITIONS:
+        for cond in [c for c in conditions or CONDITIONS if c != CLOSED_LOOP]:
             p = folder / f"{cond}.json"
             if not p.exists():
                 raise typer.BadParameter(f"missing curriculum {p}")
@@ -73,13 +74,26 @@ def init(
                                          "its assignment cell after this long."),
     consent: Path | None = typer.Option(None, "--consent", help="HTML file with your consent "
                                         "text (no scripts), shown above the check boxes."),
+    conditions: str = typer.Option("baseline,feature_only,counterfactual_only,proposed",
+                                   "--conditions", help="Comma-separated conditions to assign: "
+                                   "any of the paper's four and closed_loop."),
+    teacher: list[str] = typer.Option(None, "--teacher", help="closed_loop teacher settings "
+                                      "as field=value (comma-separated or repeated), e.g. "
+                                      "max_items=12; see docs/closed-loop.md."),
     force: bool = typer.Option(False, "--force", help="Replace study.json even when the "
                                "folder's study.db holds sessions; teach a domain whose size "
                                "estimate exceeds the free memory."),
 ) -> None:
     """Write a study folder (study.json) from curricula and test sets."""
     from cfteach.cli._common import check_out_dir, fail, study_sessions
-    from cfteach.study.build import init_study, preview_sources, teaching_sources, toy_sources
+    from cfteach.cli.simulate_cmd import _teacher_settings
+    from cfteach.study.build import (
+        check_conditions,
+        init_study,
+        preview_sources,
+        teaching_sources,
+        toy_sources,
+    )
 
     check_out_dir(out)
     n_sessions = study_sessions(f"sqlite:///{out / 'study.db'}")
@@ -89,24 +103,33 @@ def init(
              "folder, or pass --force")
 
     names = [d.strip() for d in domains.split(",") if d.strip()]
+    try:
+        chosen = check_conditions(conditions.split(","))
+        settings = _teacher_settings([x for t in teacher or [] for x in t.split(",") if x])
+    except ValueError as e:
+        fail(str(e))
     if not (toy or preview or source is not None):  # teaching here: check domains first
         from cfteach.cli._common import load_domain
 
         for name in names:
             load_domain(name, force=force)
-    if toy:
-        sources = toy_sources()
-    elif preview:
-        sources = preview_sources(names, seed=seed)
-    elif source is not None:
-        sources = _sources_from_dir(source, names)
-    else:
-        sources = teaching_sources(names, profile=profile, seed=seed, progress=True)
-    path = init_study(out, sources, title=title, completion_code=completion_code,
-                      screened_out_code=screened_out_code, no_consent_code=no_consent_code,
-                      completion_url=completion_url,
-                      demo_step_ms=demo_step_ms, cutoff_minutes=cutoff_minutes,
-                      consent_html=_read_consent(consent))
+    try:
+        if toy:
+            sources = toy_sources()
+        elif preview:
+            sources = preview_sources(names, seed=seed)
+        elif source is not None:
+            sources = _sources_from_dir(source, names, chosen)
+        else:
+            sources = teaching_sources(names, profile=profile, seed=seed, progress=True)
+        path = init_study(out, sources, title=title, completion_code=completion_code,
+                          screened_out_code=screened_out_code, no_consent_code=no_consent_code,
+                          completion_url=completion_url,
+                          demo_step_ms=demo_step_ms, cutoff_minutes=cutoff_minutes,
+                          consent_html=_read_consent(consent), conditions=chosen,
+                          teacher=settings)
+    except ValueError as e:
+        fail(str(e))
     typer.echo(f"wrote {path}")
 
 

@@ -91,7 +91,13 @@ def register(app: typer.Typer) -> None:
         from cfteach.bec import UNBOUNDED_RULES
         from cfteach.bec.demos import PROFILES
         from cfteach.teaching import CONDITIONS, teach
+        from cfteach.teaching.common import check_condition
 
+        if condition == "closed_loop":  # a known condition, but no fixed curriculum
+            try:
+                check_condition(condition)
+            except ValueError as exc:
+                fail(f"--condition: {exc}")
         _check_choice(condition, CONDITIONS, "--condition")
         _check_choice(profile, PROFILES, "--profile")
         if unbounded_models is not None:

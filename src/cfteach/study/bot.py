@@ -72,6 +72,21 @@ def run_participant(client: Any, params: dict | None, *, study: dict | None = No
                     send(i, "demo_play_end", {"demo_index": k, "completed": True,
                                               "watch_ms": round(1000 * (time.monotonic() - t0))})
             out = send(i, "continue", {})
+        elif kind == "closed_loop":
+            item = s["item"]
+            k = item["position"]
+            if item["kind"] == "demonstration" and item["completed"] < 1:
+                need = demo_required_ms(item["n_actions"], s["step_ms"])
+                send(i, "demo_play_start", {"demo_index": k})
+                t0 = time.monotonic()
+                time.sleep(need / 1000)
+                send(i, "demo_play_end", {"demo_index": k, "completed": True,
+                                          "watch_ms": round(1000 * (time.monotonic() - t0))})
+            body: dict[str, Any] = {"item": k}
+            if item["kind"] == "test":  # the naive player: often wrong, so feedback follows
+                body.update(actions=shortest_path(item["game"]), time_ms=1000)
+            answers.setdefault("closed_loop", []).append((s["domain"], k, item["kind"]))
+            out = send(i, "item_done", body)
         elif kind == "survey":
             inf, eff = rng.randint(1, 5), rng.randint(1, 5)
             answers["likert"].append((s["domain"], inf, eff))

@@ -29,6 +29,9 @@ from .practice import (
 from .texts import domain_text
 
 CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
+#: The live closed-loop condition: the server's `ClosedLoopTeacher` picks every item.
+CLOSED_LOOP = "closed_loop"
+ALL_CONDITIONS = (*CONDITIONS, CLOSED_LOOP)
 LEVELS = ("low", "medium", "high")
 STUDY_SCHEMA = "cfteach.study/1"
 
@@ -48,8 +51,16 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
                no_consent_code: str = "NOCONSENT",
                completion_url: str = "https://app.prolific.com/submissions/complete?cc=",
                test_sets: int = 3, demo_step_ms: int = 500, cutoff_minutes: float = 30.0,
-               practice_attempts: int = 3, consent_html: str | None = None) -> Path:
+               practice_attempts: int = 3, consent_html: str | None = None,
+               conditions: Iterable[str] = CONDITIONS, teacher: dict | None = None,
+               human_models: int = 32) -> Path:
     """Write `out/study.json` and return its path.
+
+    `conditions`: any of the paper's four and ``closed_loop``. A ``closed_loop`` domain needs
+    a built-in domain: its cell carries the teacher's settings (`teacher`, fields of
+    `TeacherSettings`), the pool's parameters and the held-out tests (every test of the
+    domain's test sets, the ones all conditions are tested on); the server rebuilds the
+    lesson pool from them at start (`cfteach.study.live`).
 
     `consent_html`: your ethics board's consent text (HTML without scripts) shown above the
     three consent check boxes instead of the built-in generic one. `no_consent_code` is shown
@@ -58,16 +69,20 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
     sources = list(sources)
     if not sources:
         raise ValueError("a study needs at least one domain")
+    chosen = check_conditions(conditions)
+    open_loop = [c for c in chosen if c != CLOSED_LOOP]
+    settings = _teacher_json(teacher) if CLOSED_LOOP in chosen else None
     domains: list[str] = []
     info: dict[str, dict] = {}
     curricula: dict[str, dict] = {}
     tests: dict[str, list] = {}
+    closed: dict[str, dict] = {}
     for src in sources:
         name = src.domain.name
         if name in domains:
             raise ValueError(f"domain {name!r} is given twice")
         domains.append(name)
-        missing = [c for c in CONDITIONS if c not in src.curricula]
+        missing = [c for c in open_loop if c not in src.curricula]
         if missing:
             raise ValueError(f"domain {name!r}: no curriculum for condition(s) {missing}")
         actions = tuple(src.domain.actions)
@@ -77,7 +92,7 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
                       "weights": [float(x) for x in src.domain.weights],
                       "action_names": list(actions)}
         curricula[name] = {}
-        for cond in CONDITIONS:
+        for cond in open_loop:
             cur = src.curricula[cond]
             _check_schema(cur, "cfteach.curriculum/1", f"{name}/{cond}")
             if cur.get("domain") != name:
@@ -95,12 +110,14 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
         _check_schema(src.tests, "cfteach.tests/1", f"{name}/tests")
         tests[name] = _split_tests(name, src.tests, instances, actions, info[name]["weights"],
                                    test_sets)
+        if settings is not None:
+            closed[name] = _closed_loop_cell(src, instances, settings, test_sets, human_models)
     pgame = build_game(PRACTICE, PRACTICE.initial_state, ACTIONS)
     best = optimal_value(pgame, list(PRACTICE_WEIGHTS))
     study = {
         "schema": STUDY_SCHEMA,
         "title": title,
-        "conditions": list(CONDITIONS),
+        "conditions": chosen,
         "domains": domains,
         "test_sets": test_sets,
         "demo_step_ms": demo_step_ms,
@@ -116,6 +133,8 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
         "curricula": curricula,
         "tests": tests,
     }
+    if closed:  # absent otherwise, so a paper study's file (and version) stays as it was
+        study["closed_loop"] = closed
     body = json.dumps(study, sort_keys=True, separators=(",", ":"))
     study["version"] = hashlib.sha256(body.encode()).hexdigest()[:12]
     out = Path(out)
@@ -123,6 +142,49 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
     path = out / "study.json"
     path.write_text(json.dumps(study, separators=(",", ":")))
     return path
+
+
+def check_conditions(conditions: Iterable[str]) -> list[str]:
+    """The chosen conditions in the given order; ValueError names an unknown or repeated one."""
+    chosen = [c.strip() for c in conditions if c.strip()]
+    if not chosen:
+        raise ValueError("a study needs at least one condition")
+    for c in chosen:
+        if c not in ALL_CONDITIONS:
+            raise ValueError(f"unknown condition {c!r} (known: {', '.join(ALL_CONDITIONS)})")
+    if len(set(chosen)) != len(chosen):
+        raise ValueError(f"a condition is given twice: {', '.join(chosen)}")
+    return chosen
+
+
+def _teacher_json(teacher: dict | None) -> dict:
+    from cfteach.closedloop import TeacherSettings
+
+    try:
+        return TeacherSettings(**(teacher or {})).to_json()
+    except TypeError as e:
+        raise ValueError(f"closed-loop teacher settings: {e}") from None
+
+
+def _closed_loop_cell(src: DomainSource, instances: list, settings: dict, n_sets: int,
+                      human_models: int) -> dict:
+    """What the server needs to run `closed_loop` in one domain (the pool is derived)."""
+    from cfteach.domains import Domain, builtin_names
+
+    name = src.domain.name
+    if not isinstance(src.domain, Domain) or name not in builtin_names():
+        raise ValueError(f"domain {name!r}: closed_loop needs a built-in domain "
+                         f"({', '.join(builtin_names())}), which the server can rebuild")
+    held = []
+    for level in LEVELS:
+        items = src.tests.get("tests", {}).get(level, [])
+        per = len(items) // n_sets
+        held += [{"env_index": t["env_index"], "start_state": t["start_state"]}
+                 for t in items[: per * n_sets]]
+    examples = [{"layout": instance_layout(name, inst),
+                 "state": inst.state_to_json(inst.initial_state)} for inst in instances[:3]]
+    return {"domain": name, "settings": settings, "held_out": held, "examples": examples,
+            "pool": {"profile": "default", "human_models": human_models, "seed": 0}}
 
 
 def _check_schema(obj: dict, schema: str, what: str) -> None:

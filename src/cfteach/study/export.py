@@ -12,9 +12,11 @@ from sqlalchemy import select
 from sqlalchemy.orm import sessionmaker
 
 from .db import make_engine
-from .models import ClientReport, Event, Session, TestResponse, aware
+from .live import teacher_seed
+from .models import ClientReport, ClosedLoopItem, Event, Session, TestResponse, aware
 
-COUNTERFACTUAL = {"counterfactual_only", "proposed"}
+# closed_loop's lessons are counterfactual demonstrations, without feature scaffolding
+COUNTERFACTUAL = {"counterfactual_only", "proposed", "closed_loop"}
 FEATURE = {"feature_only", "proposed"}
 
 COLUMNS: dict[str, list[tuple[str, str, str]]] = {
@@ -23,7 +25,8 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("prolific_pid", "str", "Prolific participant id (PROLIFIC_PID); empty for previews"),
         ("study_id", "str", "Prolific STUDY_ID"),
         ("session_id", "str", "Prolific SESSION_ID"),
-        ("condition", "str", "baseline | feature_only | counterfactual_only | proposed"),
+        ("condition", "str", "baseline | feature_only | counterfactual_only | proposed | "
+                             "closed_loop"),
         ("counterfactual", "0/1", "1 if the condition uses counterfactual scaffolding"),
         ("feature_scaffolding", "0/1", "1 if the condition uses feature scaffolding"),
         ("domain_order", "str", "domains in the order shown, joined by ';'"),
@@ -72,7 +75,8 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("participant_id", "str", "see participants.csv"),
         ("condition", "str", "see participants.csv"),
         ("domain", "str", "domain of the demonstration"),
-        ("demo_index", "int", "0-based position of the demonstration in the curriculum"),
+        ("demo_index", "int", "0-based position of the demonstration in the curriculum "
+                              "(closed_loop: the item's position, see closed_loop_items.csv)"),
         ("plays_completed", "int", "plays the server saw run from start to end for at least "
                                    "the replay's length"),
         ("replays", "int", "plays started beyond the first"),
@@ -88,6 +92,34 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("domain", "str", "domain of the survey; empty for demographics"),
         ("comment", "str", "free text as typed: MAY IDENTIFY THE PARTICIPANT (names, "
                            "places, contacts); review before sharing"),
+    ],
+    "closed_loop_items.csv": [
+        ("participant_id", "str", "see participants.csv (closed_loop participants only)"),
+        ("domain", "str", "domain being taught"),
+        ("domain_position", "int", "1..3: position of the domain in the participant's order"),
+        ("position", "int", "0-based position of the item in the domain's teaching phase"),
+        ("kind", "str", "demonstration | test (diagnostic) | feedback"),
+        ("purpose", "str", "lesson | remedial (demonstration), diagnostic (test), feedback"),
+        ("about", "int", "diagnostic test: the lesson's position; feedback and remedial "
+                         "lesson: the failed test's position"),
+        ("env_code", "str", "the item's instance (its env code bits)"),
+        ("env_index", "int", "the item's instance index in the domain"),
+        ("start_state", "JSON", "the item's start state"),
+        ("teacher_seed", "int", "seed of the participant's teacher in this domain "
+                                "(ClosedLoopTeacher.replay rebuilds the session from it)"),
+        ("actions", "str", "test: the participant's actions, space-separated"),
+        ("reward", "float", "test: w* . feature counts of the answer (server replay)"),
+        ("optimal_reward", "float", "test: reward of the robot's optimal answer"),
+        ("regret", "float", "test: optimal_reward - reward (0 when optimal)"),
+        ("optimal", "0/1", "test: 1 if reward equals optimal_reward within 1e-9"),
+        ("expected_area", "float", "the teacher's belief when the item was chosen: expected "
+                                   "area of the learner's posterior (sr)"),
+        ("predicted_optimal", "float", "test: the belief's P(optimal answer) to this test"),
+        ("predicted_held_out", "float", "the belief's mean P(optimal) on the post-teaching "
+                                        "tests when the item was chosen"),
+        ("time_ms", "int", "from the item being decided to its answer, on the server's clock"),
+        ("shown_at", "ISO 8601 UTC", "when the item was decided (the previous answer stored)"),
+        ("done_at", "ISO 8601 UTC", "when its answer was stored; empty if never answered"),
     ],
     "client_reports.csv": [
         ("participant_id", "str", "see participants.csv; empty if the page had no valid "
@@ -183,6 +215,24 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
             s = by_pk[pk]
             rows["demo_views.csv"].append([s.participant_id, s.condition, dom, k, done,
                                            max(0, starts - 1), ms, client_ms])
+        for it in db.scalars(select(ClosedLoopItem).order_by(
+                ClosedLoopItem.session_pk, ClosedLoopItem.domain, ClosedLoopItem.position)):
+            s = by_pk.get(it.session_pk)
+            if s is None:
+                continue
+            test = it.kind == "test" and it.reward is not None
+            rows["closed_loop_items.csv"].append([
+                s.participant_id, it.domain, s.domain_order.split(";").index(it.domain) + 1,
+                it.position, it.kind, it.purpose, "" if it.about is None else it.about,
+                it.env_code, it.env_index, json.dumps(it.start_state, sort_keys=True),
+                teacher_seed(s.seed, it.domain), it.actions or "",
+                repr(it.reward) if test else "", repr(it.optimal_reward) if test else "",
+                repr(max(0.0, it.optimal_reward - it.reward)) if test else "",
+                _b(bool(it.optimal)) if test else "", repr(it.expected_area),
+                "" if it.predicted_optimal is None else repr(it.predicted_optimal),
+                "" if it.predicted_held_out is None else repr(it.predicted_held_out),
+                "" if it.server_ms is None else it.server_ms, _iso(it.shown_at),
+                _iso(it.done_at)])
         for r in db.scalars(select(ClientReport).order_by(ClientReport.id)):
             s = by_pk.get(r.session_pk) if r.session_pk is not None else None
             if r.session_pk is not None and s is None:

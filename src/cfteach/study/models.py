@@ -141,3 +141,37 @@ class StudyVersion(Base):
     title: Mapped[str] = mapped_column(String(200))
     content: Mapped[str] = mapped_column(Text)  # study.json as written by `study init`
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class ClosedLoopItem(Base):
+    """One item a closed-loop participant was shown (`closed_loop` condition).
+
+    Written when the teacher decides the item (in the transaction that stored the answer
+    before it) and completed when its own answer is stored. It is a record for the export:
+    the teacher's state itself is rebuilt from the events alone (`cfteach.study.live`).
+    """
+
+    __tablename__ = "closed_loop_items"
+    __table_args__ = (UniqueConstraint("session_pk", "domain", "position",
+                                       name="uq_closed_loop_items_position"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    session_pk: Mapped[int] = mapped_column(ForeignKey("sessions.id"), index=True)
+    domain: Mapped[str] = mapped_column(String(64))
+    position: Mapped[int] = mapped_column(Integer)          # 0-based within the domain
+    kind: Mapped[str] = mapped_column(String(16))           # demonstration | test | feedback
+    purpose: Mapped[str] = mapped_column(String(16))        # lesson | remedial | diagnostic...
+    demo: Mapped[int] = mapped_column(Integer)              # the pool's demo index
+    about: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    env_code: Mapped[str] = mapped_column(String(64))
+    env_index: Mapped[int] = mapped_column(Integer)
+    start_state: Mapped[dict] = mapped_column(JSON)
+    expected_area: Mapped[float] = mapped_column(Float)     # belief when the item was chosen
+    predicted_optimal: Mapped[float | None] = mapped_column(Float, nullable=True)
+    predicted_held_out: Mapped[float | None] = mapped_column(Float, nullable=True)
+    shown_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    done_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    server_ms: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    actions: Mapped[str | None] = mapped_column(Text, nullable=True)   # tests: the answer
+    reward: Mapped[float | None] = mapped_column(Float, nullable=True)
+    optimal_reward: Mapped[float | None] = mapped_column(Float, nullable=True)
+    optimal: Mapped[bool | None] = mapped_column(Boolean, nullable=True)

@@ -173,6 +173,14 @@ class TestAnswer(Strict):
     resets: Annotated[int, Field(ge=0, le=10_000), Int] = 0
 
 
+class ItemDone(Strict):
+    """The item on screen of a closed-loop teaching phase is done (`actions`: a test's)."""
+
+    item: Annotated[int, Field(ge=0, le=1000)]
+    actions: Annotated[list[Action], Field(max_length=500)] | None = None
+    time_ms: Annotated[int, Field(ge=0, le=86_400_000)] | None = None
+
+
 class Demographics(Strict):
     age: Annotated[int, Field(ge=18, le=120), Int]
     gender: Literal[tuple(GENDERS)]  # type: ignore[valid-type]
@@ -184,7 +192,7 @@ PAYLOADS: dict[str, type[Strict]] = {
     "consent": Consent, "continue": Empty, "practice_attempt": PracticeAttempt,
     "demo_play_start": DemoPlayStart, "demo_play_end": DemoPlayEnd, "likert": Likert,
     "test_response": TestAnswer, "demographics": Demographics, "page_load": Empty,
-    "decline": Empty,
+    "decline": Empty, "item_done": ItemDone,
 }
 
 

@@ -14,7 +14,7 @@ import httpx
 
 from .bot import find_test, run_participant
 from .config import load_study
-from .games import best_path
+from .games import best_path, shortest_path
 from .livesrv import running
 from .server import create_app
 
@@ -22,8 +22,8 @@ CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
         "--disable-component-update", "--disable-sync", "--no-first-run",
         "--disable-dev-shm-usage"]
-KINDS = ("consent", "practice", "domain_intro", "demos", "survey", "test", "feedback",
-         "demographics", "complete")
+KINDS = ("consent", "practice", "domain_intro", "demos", "closed_loop", "survey", "test",
+         "feedback", "demographics", "complete")
 KEYS = {"up": "ArrowUp", "down": "ArrowDown", "left": "ArrowLeft", "right": "ArrowRight",
         "pickup": "p", "dropoff": "d"}
 
@@ -54,6 +54,8 @@ def take_screenshots(study_dir: str | Path, out: str | Path, *, prefix: str = "s
                 name = kind.replace("_", "-")
                 if kind in ("demos", "test"):  # one per domain: each has its own look
                     name += f"-{st['step']['domain']}"
+                elif kind == "closed_loop":  # one per kind of item: demonstration, test...
+                    name += f"-{st['step']['item']['kind']}"
                 if kind in kinds and name not in seen:
                     seen.add(name)
                     page.reload()
@@ -62,6 +64,9 @@ def take_screenshots(study_dir: str | Path, out: str | Path, *, prefix: str = "s
                     path = out / f"{prefix}{name}.png"
                     page.screenshot(path=str(path), full_page=True)
                     saved.append(path)
+                    if kind == "closed_loop" and st["step"]["item"]["kind"] == "demonstration":
+                        # let the page's own play end first, or it would overlap the bot's
+                        page.wait_for_selector("#board[data-watched='true']")
                     if kind == "demos":  # let the page's replay end before the bot plays
                         _wait_watched(c, headers, st["step"])
                 if kind in ("complete", "screened_out"):
@@ -87,7 +92,19 @@ def _wait_watched(client: httpx.Client, headers: dict, step: dict) -> None:
 def _stage(page, st: dict, study: dict) -> None:  # noqa: ANN001
     """Put the page in a telling state: a demonstration mid-way, a game half played."""
     s = st["step"]
-    if s["kind"] == "demos":
+    if s["kind"] == "closed_loop":
+        item = s["item"]
+        if item["kind"] == "demonstration":
+            page.click("#play")
+            page.wait_for_timeout(s["step_ms"] * (len(item["states"]) // 2))
+        elif item["kind"] == "test":  # half of the naive answer (the page has no rewards)
+            moves = shortest_path(item["game"])
+            page.click("#board")
+            for m in moves[: max(1, len(moves) // 2)]:
+                page.keyboard.press(KEYS[m])
+        else:  # feedback: both replays played to the end
+            page.wait_for_selector("#next:not([disabled])")
+    elif s["kind"] == "demos":
         page.click("#play")
         page.wait_for_selector("#board:not([data-frame='0'])")
         page.wait_for_timeout(s["step_ms"] * (len(s["demos"][0]["states"]) // 2 - 1))

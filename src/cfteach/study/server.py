@@ -62,6 +62,7 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
                          "finish, or pass --new-version to start anyway (they cannot finish)")
     store_version(engine, study)
     service = StudyService(engine, study, seed=seed)
+    service.live.warm(study)  # closed-loop lesson pools: derived from the file, built now
     token = researcher_token or secrets.token_urlsafe(16)
     session_limit = RateLimiter(sessions_per_minute)
     event_limit = RateLimiter(events_per_minute)

@@ -21,8 +21,10 @@ from cfteach.mdp.scoring import is_optimal
 from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .build import browser_game
-from .games import ScoringError, replay
-from .models import ClientReport, Event, Session, TestResponse, aware, utcnow
+from .games import ScoringError, public_game, replay
+from .layout import instance_layout
+from .live import LiveTeaching, path_states, responses_of
+from .models import ClientReport, ClosedLoopItem, Event, Session, TestResponse, aware, utcnow
 from .steps import ALLOWED, build_steps, demo_required_ms
 from .texts import EDUCATION, GENDERS, LIKERT
 from .versions import load_version
@@ -65,6 +67,7 @@ class StudyService:
         # Study versions by id: the current one plus older ones that still have sessions,
         # read from the database on first use (see versions.py).
         self._studies: dict[str, dict] = {study["version"]: study}
+        self.live = LiveTeaching()
 
     # -- sessions -------------------------------------------------------------------------
 
@@ -136,11 +139,11 @@ class StudyService:
         return self._studies[row.study_version]
 
     def steps(self, row: Session) -> list[dict]:
-        key = (row.study_version, row.domain_order, row.test_set, row.seed)
+        key = (row.study_version, row.domain_order, row.test_set, row.seed, row.condition)
         steps = self._steps_cache.get(key)
         if steps is None:
             steps = build_steps(self.study_of(row), row.domain_order.split(";"), row.test_set,
-                                row.seed)
+                                row.seed, row.condition)
             with self._cache_lock:
                 if len(self._steps_cache) >= 2048:  # bounded: recent sessions only
                     self._steps_cache.pop(next(iter(self._steps_cache)))
@@ -177,7 +180,9 @@ class StudyService:
             step["info"] = _public_info(s["domain_info"][step["domain"]])
             # A few configurations of this game: the demonstrations' layouts, unplayed.
             seen, examples = set(), []
-            for d in s["curricula"][step["domain"]][row.condition]:
+            if row.condition == "closed_loop":
+                examples = s["closed_loop"][step["domain"]]["examples"]
+            for d in s["curricula"][step["domain"]].get(row.condition, []):
                 key = repr(d["layout"])
                 if key not in seen and len(examples) < 3:
                     seen.add(key)
@@ -188,6 +193,9 @@ class StudyService:
             step.update(info=_public_info(s["domain_info"][step["domain"]]), demos=demos,
                         step_ms=s["demo_step_ms"],
                         completed=self._demo_completions(db, row, row.step_index, len(demos)))
+        elif kind == "closed_loop":
+            step.update(info=_public_info(s["domain_info"][step["domain"]]),
+                        step_ms=s["demo_step_ms"], **self._cl_view(db, row, step))
         elif kind == "survey":
             step["items"] = {k: LIKERT[k] for k in ("informativeness", "mental_effort")}
         elif kind == "test":
@@ -231,8 +239,16 @@ class StudyService:
         replay's length minus a small tolerance (`steps.demo_required_ms`).
         """
         study = self.study_of(row)
-        demos = study["curricula"][step["domain"]][row.condition]
-        if p.demo_index >= len(demos):
+        if step["kind"] == "closed_loop":
+            item = self._cl_pending(db, row, step)
+            if item is None or p.demo_index != item.position or item.kind == "test":
+                raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not the "
+                               "demonstration this page shows")
+            pool = self.live.pool(study, step["domain"])
+            demos = {p.demo_index: {"actions": pool.ds.action_names(item.demo)}}
+        else:
+            demos = study["curricula"][step["domain"]][row.condition]
+        if p.demo_index >= len(demos) and step["kind"] != "closed_loop":
             raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not one of this "
                            f"page's {len(demos)} demonstrations")
         if not isinstance(p, schemas.DemoPlayEnd):
@@ -253,6 +269,10 @@ class StudyService:
 
     def post_event(self, token: str | None, req: schemas.EventRequest) -> dict:
         """Store one event exactly once and apply its effect on the step machine."""
+        try:
+            self._cl_prepare(token, req)
+        except (ApiError, ValueError, KeyError, TypeError, RuntimeError):
+            pass  # the transaction below refuses the event with the right answer
         with self.Session() as db:
             try:
                 with db.begin():
@@ -326,13 +346,148 @@ class StudyService:
         elif req.type == "demographics":
             row.age, row.gender, row.education = payload.age, payload.gender, payload.education
             advance = True
-        if advance:
+        elif req.type == "item_done":
+            advance = self._cl_item_done(db, row, step, ev, payload, now)
+        while advance:
             row.step_index += 1
             row.step_entered_at = now
+            advance = False
             if steps[row.step_index]["kind"] == "complete":
                 row.status = "completed"
                 row.completed_at = now
+            elif steps[row.step_index]["kind"] == "closed_loop":
+                # the first item is decided now; a teacher with nothing to teach skips ahead
+                advance = self._cl_decide(db, row, steps[row.step_index], now) is None
         return row, result
+
+    # -- the closed_loop condition (cfteach.study.live) ----------------------------------
+
+    def _cl_stored(self, db: DBSession, row: Session, step_index: int) -> list[dict]:
+        return list(db.scalars(select(Event.payload).where(
+            Event.session_pk == row.id, Event.step_index == step_index,
+            Event.type == "item_done").order_by(Event.seq)))
+
+    def _cl_pending(self, db: DBSession, row: Session, step: dict) -> ClosedLoopItem | None:
+        """The item on screen: the first one without an answer."""
+        return db.scalar(select(ClosedLoopItem).where(
+            ClosedLoopItem.session_pk == row.id, ClosedLoopItem.domain == step["domain"],
+            ClosedLoopItem.done_at.is_(None)).order_by(ClosedLoopItem.position).limit(1))
+
+    def _cl_decide(self, db: DBSession, row: Session, step: dict,
+                   now: datetime) -> ClosedLoopItem | None:
+        """Decide the next item from the stored events and record it; None when done."""
+        study = self.study_of(row)
+        dom = step["domain"]
+        responses = responses_of(self._cl_stored(db, row, row.step_index))
+        # usually found ready (decided by `_cl_prepare` or in the background), as this
+        # runs inside the write transaction
+        item, summary = self.live.decide(study, row.id, row.seed, dom, responses, ahead=False)
+        if item is None:
+            return None
+        ds = self.live.pool(study, dom).ds
+        inst = ds.instance(item.demo)
+        rec = ClosedLoopItem(
+            session_pk=row.id, domain=dom, position=item.index, kind=item.kind,
+            purpose=item.purpose, demo=item.demo, about=item.about,
+            env_code="".join(str(int(b)) for b in inst.env_code), env_index=int(inst.index),
+            start_state=inst.state_to_json(ds.trajectory_states(item.demo)[0]),
+            shown_at=now, **summary)
+        db.add(rec)
+        return rec
+
+    def _cl_prepare(self, token: str | None, req: schemas.EventRequest) -> None:
+        """Before the write transaction: decide the item this event will lead to, so the
+        transaction (which holds SQLite's write lock) only finds it ready. Speculative: any
+        problem is left for the transaction to report, and a refused event's decision is
+        simply never used (teachers are found by the responses they have seen)."""
+        if req.type not in ("item_done", "continue"):
+            return
+        with self.ReadSession() as db, db.begin():
+            row = self._session(db, token)
+            if row.status != "in_progress" or req.step_index != row.step_index:
+                return
+            steps = self.steps(row)
+            step = steps[row.step_index]
+            if step["kind"] == "closed_loop" and req.type == "item_done":
+                pending = self._cl_pending(db, row, step)
+                p = req.payload
+                if pending is None or p.get("item") != pending.position or (
+                        pending.kind == "test") != (p.get("actions") is not None):
+                    return
+                payloads = [*self._cl_stored(db, row, row.step_index), p]
+            elif (req.type == "continue" and row.step_index + 1 < len(steps)
+                  and steps[row.step_index + 1]["kind"] == "closed_loop"):
+                step, payloads = steps[row.step_index + 1], []
+            else:
+                return
+            study, pk, seed = self.study_of(row), row.id, row.seed
+        self.live.decide(study, pk, seed, step["domain"], responses_of(payloads))
+
+    def _cl_item_done(self, db: DBSession, row: Session, step: dict, ev: Event,
+                      p: schemas.ItemDone, now: datetime) -> bool:
+        """Record the answer to the item on screen and decide the next; True when the
+        domain's teaching is over (the session moves on to the survey)."""
+        item = self._cl_pending(db, row, step)
+        if item is None or p.item != item.position:
+            raise ApiError(409, "wrong_item", f"item {p.item} is not the item on screen "
+                           f"({'none' if item is None else item.position})")
+        study = self.study_of(row)
+        if item.kind == "test":
+            if p.actions is None:
+                raise ApiError(422, "bad_payload", "item_done: a test needs its actions")
+            game = self.live.game(study, step["domain"], item.demo)
+            try:
+                score = replay(game, study["domain_info"][step["domain"]]["weights"],
+                               p.actions)
+            except ScoringError as e:
+                raise ApiError(422, "bad_moves", str(e)) from e
+            best = float(self.live.pool(study, step["domain"]).ds.reward(item.demo))
+            item.actions, item.reward, item.optimal_reward = " ".join(p.actions), \
+                score.reward, best
+            item.optimal = is_optimal(score.reward, best)
+        else:
+            if p.actions is not None:
+                raise ApiError(422, "bad_payload", f"item_done: a {item.kind} takes no actions")
+            if item.kind == "demonstration":
+                done = self._demo_completions(db, row, row.step_index, item.position + 1)
+                if done[item.position] < 1:
+                    raise ApiError(409, "demos_unwatched", "the demonstration must be played "
+                                   "and watched to the end at least once")
+        item.done_at = now
+        item.server_ms = max(0, int((now - aware(item.shown_at)).total_seconds() * 1000))
+        db.flush()  # the event is stored: the teacher now sees its response
+        return self._cl_decide(db, row, step, now) is None
+
+    def _cl_view(self, db: DBSession, row: Session, step: dict) -> dict:
+        """What the page shows for the item on screen (decided when the last answer came)."""
+        study = self.study_of(row)
+        dom = step["domain"]
+        item = self._cl_pending(db, row, step)
+        if item is None:  # cannot happen: the step is left when teaching ends
+            raise ApiError(409, "wrong_step", "no closed-loop item is pending")
+        pool = self.live.pool(study, dom)
+        ds = pool.ds
+        inst = ds.instance(item.demo)
+        layout = instance_layout(dom, inst)
+        optimal = [inst.state_to_json(x) for x in ds.trajectory_states(item.demo)]
+        out: dict[str, Any] = {"item": {"position": item.position, "kind": item.kind,
+                                        "purpose": item.purpose, "layout": layout}}
+        if item.kind == "demonstration":
+            out["item"].update(states=optimal, n_actions=len(optimal) - 1,
+                               completed=self._demo_completions(
+                                   db, row, row.step_index, item.position + 1)[item.position])
+        elif item.kind == "test":
+            out["item"].update(game=public_game(self.live.game(study, dom, item.demo)),
+                               elapsed_ms=max(0, int((utcnow() - aware(item.shown_at))
+                                                     .total_seconds() * 1000)))
+        else:
+            failed = db.scalar(select(ClosedLoopItem).where(
+                ClosedLoopItem.session_pk == row.id, ClosedLoopItem.domain == dom,
+                ClosedLoopItem.position == item.about))
+            game = self.live.game(study, dom, item.demo)
+            answer = (failed.actions or "").split()
+            out["item"].update(optimal=optimal, answer=path_states(game, answer))
+        return out
 
     def _practice(self, row: Session, p: schemas.PracticeAttempt) -> dict:
         prac = self.study_of(row)["practice"]

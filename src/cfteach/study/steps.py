@@ -26,12 +26,17 @@ def shuffled_tests(seed: int, domain: str, n: int) -> list[int]:
     return order
 
 
-def build_steps(study: dict, domain_order: list[str], test_set: int, seed: int) -> list[dict]:
+def build_steps(study: dict, domain_order: list[str], test_set: int, seed: int,
+                condition: str | None = None) -> list[dict]:
+    """The session's pages. A ``closed_loop`` session's teaching phase is one
+    ``closed_loop`` step per domain, whose items the server's teacher decides one at a time
+    (`cfteach.study.live`); every other page is the same for all conditions."""
+    teach = "closed_loop" if condition == "closed_loop" else "demos"
     steps: list[dict] = [{"kind": "consent"}, {"kind": "instructions"}, {"kind": "free_play"},
                          {"kind": "practice"}, {"kind": "post_practice"}]
     for pos, dom in enumerate(domain_order, start=1):
         base = {"domain": dom, "position": pos}
-        steps += [{"kind": "domain_intro", **base}, {"kind": "demos", **base},
+        steps += [{"kind": "domain_intro", **base}, {"kind": teach, **base},
                   {"kind": "survey", **base}]
         n = len(study["tests"][dom][test_set])
         for trial, t in enumerate(shuffled_tests(seed, dom, n), start=1):
@@ -50,6 +55,7 @@ ALLOWED = {
     "post_practice": {"continue"},
     "domain_intro": {"continue"},
     "demos": {"demo_play_start", "demo_play_end", "continue"},
+    "closed_loop": {"demo_play_start", "demo_play_end", "item_done"},
     "survey": {"likert"},
     "test": {"test_response"},
     "feedback": {"continue"},

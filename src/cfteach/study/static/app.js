@@ -474,6 +474,111 @@ const pages = {
     show();
   },
 
+  // The closed_loop condition: one item at a time, decided by the server's teacher.
+  closed_loop(st) {
+    const s = st.step;
+    const it = s.item;
+    const head = h("p", { id: "cl-item", "data-kind": it.kind, "data-position": String(it.position),
+      "data-purpose": it.purpose });
+    const board = h("div", { id: "board" });
+    const done = (extra = {}) => advance(st.step_index, "item_done", { item: it.position, ...extra });
+    let timer = null;
+    const stopTimer = () => { if (timer) clearInterval(timer); timer = null; };
+    cleanup.push(stopTimer);
+    // Animate `paths` (one list of states per board) side by side, `onDone` at the end.
+    const animate = (boards, paths, labels, banners, onDone) => {
+      stopTimer();
+      let f = 0;
+      const n = Math.max(...paths.map((p) => p.length));
+      const frame = () => boards.forEach((b, i) => {
+        const p = paths[i];
+        const j = Math.min(f, p.length - 1);
+        b.replaceChildren(drawGrid(it.layout, p[j], { trail: p.slice(0, j + 1).map((x) => x.agent),
+          label: labels[i], banner: f >= n - 1 ? banners[i] : null }));
+        b.dataset.frame = String(j);
+      });
+      frame();
+      timer = setInterval(() => {
+        f += 1;
+        frame();
+        if (f >= n - 1) { stopTimer(); onDone(); }
+      }, s.step_ms);
+    };
+    if (it.kind === "demonstration") {
+      let watched = it.completed;
+      let playing = null;
+      const playBtn = h("button", { id: "play", class: "primary" }, watched ? "Replay" : "Play");
+      const next = continueButton("Continue", () => { stopPlay(false); done(); },
+        { id: "next", disabled: !watched });
+      const stopPlay = (completed) => {
+        stopTimer();
+        if (playing) {
+          send(st.step_index, "demo_play_end", { demo_index: it.position, completed,
+            watch_ms: Math.round(performance.now() - playing) });
+          playing = null;
+        }
+      };
+      board.replaceChildren(drawGrid(it.layout, it.states[0], { trail: [it.states[0].agent],
+        label: "demonstration" }));
+      playBtn.addEventListener("click", () => {
+        stopPlay(false);
+        playing = performance.now();
+        send(st.step_index, "demo_play_start", { demo_index: it.position });
+        playBtn.disabled = true;
+        animate([board], [it.states], ["demonstration"], ["Demonstration complete"], () => {
+          stopPlay(true);
+          watched += 1;
+          board.dataset.watched = "true";
+          playBtn.disabled = false;
+          playBtn.textContent = "Replay";
+          next.disabled = false;
+        });
+      });
+      cleanup.push(() => stopPlay(false));
+      app.replaceChildren(h("h1", { text: it.purpose === "remedial"
+        ? "Another demonstration of the best strategy" : "Demonstration of best strategy" }),
+      head, h("p", { text: `Task: ${s.info.task}` }),
+      h("p", { text: "Watch Chip's demonstration to the end (as many times as you like), " +
+        "then continue." }), board, h("div", { class: "controls" }, playBtn, " ", next));
+    } else if (it.kind === "test") {
+      const t0 = performance.now() - (it.elapsed_ms || 0);
+      const submit = continueButton("Submit", () => {
+        if (!game.ended) return;
+        submit.disabled = true;
+        done({ actions: game.moves, time_ms: Math.round(performance.now() - t0) });
+      }, { id: "next", disabled: true });
+      const game = new Game(board, it.layout, it.game, { keys: s.info.keys, label: "test game",
+        onEnd: () => { submit.disabled = false; },
+        onMove: (g) => { submit.disabled = !g.ended; } });
+      app.replaceChildren(h("h1", { text: "Your turn" }), head,
+        h("p", { text: "Show how you would complete this game's task while minimizing " +
+          "Chip's energy loss. You may reset at any time before the game ends." }),
+        h("p", { text: `Task: ${s.info.task}` }),
+        h("div", { class: "play" }, board, keyLegend(s.info.keys)), submit);
+      activate(game);
+    } else {  // feedback: the participant's answer beside the best one, animated together
+      const mine = h("div", { id: "answer-board", class: "board" });
+      const best = h("div", { id: "optimal-board", class: "board" });
+      const replayBtn = h("button", { id: "play" }, "Replay");
+      const next = continueButton("Continue", () => done(), { id: "next", disabled: true });
+      const run = () => {
+        replayBtn.disabled = true;
+        animate([mine, best], [it.answer, it.optimal], ["your answer", "Chip's best answer"],
+          [null, null], () => { replayBtn.disabled = false; next.disabled = false; });
+      };
+      replayBtn.addEventListener("click", run);
+      app.replaceChildren(h("h1", { text: "Compare with Chip" }), head,
+        h("p", { id: "feedback-text", text: "That was not the best strategy: your answer " +
+          "(left) and Chip's best answer (right) replay side by side, so you can see where " +
+          "they differ." }),
+        h("div", { class: "play side-by-side" },
+          h("figure", {}, mine, h("figcaption", { text: "Your answer" })),
+          h("figure", {}, best, h("figcaption", { text: "Chip's best answer" }))),
+        h("div", { class: "controls" }, replayBtn, " ", next));
+      run();
+    }
+  },
+
   survey(st) {
     const items = st.step.items;
     const form = h("form", { id: "survey" });

@@ -1,0 +1,281 @@
+"""The live `closed_loop` condition: a `ClosedLoopTeacher` per participant and domain.
+
+The teacher's state is a pure function of (pool, settings, seed, responses), and the
+responses are the participant's stored `item_done` events. So nothing here is the only copy
+of anything: the pools are derived from the study file (rebuilt at server start, cached per
+server), and a teacher is cached only as a shortcut, found by the responses it has seen
+(its event count and content). After a restart, or when the cache does not match the
+database, the teacher is replayed from the events (`ClosedLoopTeacher.replay`).
+
+While a participant watches a demonstration or feedback (whose response is always ``{}``),
+a background thread decides the item after it, at most one task per session at a time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import threading
+import zlib
+from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from cfteach.closedloop import ClosedLoopTeacher, LessonPool, TeacherSettings, build_pool
+from cfteach.closedloop.pool import SATISFIED_TOL
+from cfteach.closedloop.teacher import Item
+from cfteach.jsonable import to_jsonable
+
+#: Sessions whose teachers are kept per server (up to two teachers of a few hundred kB
+#: each); older ones are replayed from their events when needed.
+MAX_TEACHERS = 512
+#: Diagnostic-test tables kept per server (up to about half a MB each in Python objects).
+MAX_GAMES = 256
+
+
+def teacher_seed(session_seed: int, domain: str) -> int:
+    """The teacher's seed for one participant and domain (stable across restarts)."""
+    return zlib.crc32(f"{session_seed}:{domain}".encode()) & 0x7FFFFFFF
+
+
+def settings_of(cell: dict) -> TeacherSettings:
+    s = dict(cell["settings"])
+    s["zpd_band"] = tuple(s["zpd_band"])
+    return TeacherSettings(**s)
+
+
+def pool_from_cell(cell: dict) -> LessonPool:
+    """Rebuild a domain's lesson pool from its `closed_loop` cell in study.json."""
+    p = cell["pool"]
+    return build_pool(cell["domain"], profile=p["profile"], human_models=p["human_models"],
+                      seed=p["seed"], held_out=list(cell["held_out"]))
+
+
+def responses_of(payloads: list[dict]) -> list[dict[str, Any]]:
+    """Teacher responses from stored `item_done` payloads, in order."""
+    return [{"actions": list(p["actions"])} if p.get("actions") is not None else {}
+            for p in payloads]
+
+
+class LiveTeaching:
+    """Pools, games and (cached) teachers of one server."""
+
+    def __init__(self, workers: int = 2) -> None:
+        self._pools: dict[tuple[str, str], LessonPool] = {}
+        self._games: dict[tuple[str, str, int], dict] = {}
+        self._teachers: OrderedDict[tuple, list[ClosedLoopTeacher]] = OrderedDict()
+        self._locks: dict[tuple, threading.Lock] = {}
+        self._lock = threading.Lock()
+        self._pool_lock = threading.Lock()
+        self._busy: set[tuple] = set()
+        self._ahead: dict[tuple, int] = {}  # session -> responses its last ahead task had
+        self._slots = threading.BoundedSemaphore(workers)
+        self._executor = ThreadPoolExecutor(max_workers=workers,
+                                            thread_name_prefix="closed-loop")
+
+    def close(self) -> None:
+        self._executor.shutdown(wait=False, cancel_futures=True)
+
+    # -- derived data ----------------------------------------------------------------------
+    def pool(self, study: dict, domain: str) -> LessonPool:
+        key = (study["version"], domain)
+        with self._pool_lock:
+            if key not in self._pools:
+                self._pools[key] = pool_from_cell(study["closed_loop"][domain])
+            return self._pools[key]
+
+    def warm(self, study: dict) -> None:
+        """Build every closed-loop pool of a study now (at server start)."""
+        for domain in study.get("closed_loop", {}):
+            self.pool(study, domain)
+
+    def game(self, study: dict, domain: str, demo: int) -> dict:
+        """The playable table of a test started at pool demo `demo` (cached)."""
+        key = (study["version"], domain, demo)
+        g = self._games.get(key)
+        if g is None:
+            g = game_from_batch(self.pool(study, domain).ds, demo)
+            with self._lock:
+                if len(self._games) >= MAX_GAMES:
+                    self._games.pop(next(iter(self._games)))
+                self._games[key] = g
+        return g
+
+    # -- teachers --------------------------------------------------------------------------
+    def session_lock(self, session_pk: int, domain: str) -> threading.Lock:
+        with self._lock:
+            return self._locks.setdefault((session_pk, domain), threading.Lock())
+
+    def teacher(self, study: dict, session_pk: int, session_seed: int, domain: str,
+                responses: list[dict]) -> ClosedLoopTeacher:
+        """The teacher that has seen exactly `responses` (hold `session_lock` around its use).
+
+        A cached teacher whose responses are a prefix of these is brought up to date; any
+        other is ignored, and the session is replayed from the responses.
+        """
+        key = (session_pk, domain)
+        with self._lock:
+            cands = list(self._teachers.get(key, []))
+        best = None
+        for t in cands:
+            n = len(t.responses)
+            if n <= len(responses) and t.responses == responses[:n] and (
+                    best is None or n > len(best.responses)):
+                best = t
+        pool = self.pool(study, domain)
+        if best is None:
+            best = ClosedLoopTeacher.replay(pool, responses,
+                                            settings=settings_of(study["closed_loop"][domain]),
+                                            seed=teacher_seed(session_seed, domain))
+        else:
+            for r in responses[len(best.responses):]:
+                best.next()
+                best.observe(r)
+        self._remember(key, best)
+        return best
+
+    def _remember(self, key: tuple, t: ClosedLoopTeacher) -> None:
+        with self._lock:
+            kept = [x for x in self._teachers.pop(key, []) if x is not t][-1:]
+            self._teachers[key] = [*kept, t]
+            while len(self._teachers) > MAX_TEACHERS:
+                old, _ = self._teachers.popitem(last=False)
+                self._locks.pop(old, None)
+                self._ahead.pop(old, None)
+
+    def decide(self, study: dict, session_pk: int, session_seed: int, domain: str,
+               responses: list[dict], *, ahead: bool = True) -> tuple[Item | None, dict | None]:
+        """The item after `responses` and the belief summary when it was chosen (both
+        memoized on the teacher, so asking again costs nothing). With `ahead`, the item
+        after a demonstration or feedback is then decided in the background. With `ahead`
+        (outside any database transaction) at most `workers` decisions run at once, so the
+        requests that hold the database's write lock are not starved of the interpreter."""
+        with self._slots if ahead else contextlib.nullcontext(), \
+                self.session_lock(session_pk, domain):
+            t = self.teacher(study, session_pk, session_seed, domain, responses)
+            item, summary = _decided(t)
+            if item is not None and item.kind == "test":
+                self.game(study, domain, item.demo)  # the page's table, built now
+            if ahead:
+                self._precompute(study, session_pk, domain, t)
+        return item, summary
+
+    def _precompute(self, study: dict, session_pk: int, domain: str,
+                    t: ClosedLoopTeacher) -> bool:
+        """Decide, in the background, the item after `t`'s pending one when its response
+        is known in advance (a demonstration or feedback: ``{}``). At most one task per
+        session; returns whether one was started. Call with the session lock held."""
+        item = t.next()
+        key = (session_pk, domain)
+        if item is None or item.kind == "test":
+            return False
+        with self._lock:
+            if key in self._busy or self._ahead.get(key) == len(t.responses):
+                return False  # running, or already done for this very item
+            self._busy.add(key)
+            self._ahead[key] = len(t.responses)
+        ahead = copy.deepcopy(t, {id(t.pool): t.pool})
+
+        def run() -> None:
+            try:
+                ahead.observe({})  # a private copy: no lock held while computing
+                item, _ = _decided(ahead)
+                self._remember(key, ahead)
+                if item is not None and item.kind == "test":
+                    self.game(study, domain, item.demo)  # the page's table, built now too
+            finally:
+                with self._lock:
+                    self._busy.discard(key)
+
+        self._executor.submit(run)
+        return True
+
+
+def _decided(t: ClosedLoopTeacher) -> tuple[Item | None, dict | None]:
+    """`t.next()` and its belief summary, memoized on the teacher."""
+    memo = getattr(t, "_live_decided", None)
+    if memo is not None and memo[0] == len(t.responses):
+        return memo[1], memo[2]
+    item = t.next()
+    summary = None if item is None else item_summary(t, item)
+    t._live_decided = (len(t.responses), item, summary)  # type: ignore[attr-defined]
+    return item, summary
+
+
+def item_summary(t: ClosedLoopTeacher, item: Item) -> dict:
+    """The belief summary stored with an item when it is chosen."""
+    return {"expected_area": float(t.belief.expected_area()),
+            "predicted_optimal": item.predicted_optimal,
+            "predicted_held_out": held_out_p(t)}
+
+
+def held_out_p(t: ClosedLoopTeacher) -> float | None:
+    """`t.predicted_held_out()`, asking the particles about the held-out tests' rows only
+    (a few dozen of the pool's rows instead of all of them)."""
+    held = np.array(sorted(t.pool.held_out), dtype=np.int64)
+    if not len(held):
+        return None
+    tests = t.pool.tests
+    slots = tests.slot[held]
+    used = np.unique(slots[slots >= 0])
+    p = np.ones(len(held))
+    if len(used):
+        inc = tests.incidence[used]
+        cols = np.unique(inc.indices)
+        broken = (tests.rows[cols] @ t.belief.particles.T < -SATISFIED_TOL).astype(np.float32)
+        sat = np.asarray(inc[:, cols] @ broken) == 0  # [k, P]
+        p_set = dict(zip(used.tolist(), (sat.astype(float) @ t.belief.weights).tolist(),
+                         strict=True))
+        p = np.array([p_set[int(k)] if k >= 0 else 1.0 for k in slots])
+    return float(p.mean())
+
+
+def game_from_batch(ds: Any, demo: int) -> dict:  # noqa: ANN401 - a DemoSet
+    """`games.build_game` for the start of pool demo `demo`, read from the domain's compiled
+    transition arrays (the same table, about ten times faster): only the moves that end the
+    game ask the instance for the terminal state they reach."""
+    b = ds.batch
+    e, start = int(ds.env[demo]), int(ds.start[demo])
+    inst, states, sink = b.instances[e], b.states[e], b.sink
+    ns, feat = b.next_state[e], b.features[e]
+    index: dict[tuple, int] = {("r", start): 0}
+    nodes: list[tuple] = [("r", start)]
+    shown = [states[start]]
+    nxt: list[list[int] | None] = []
+    phi: list[list[list[float]] | None] = []
+    i = 0
+    while i < len(nodes):
+        kind, s = nodes[i]
+        i += 1
+        if kind == "t":
+            nxt.append(None)
+            phi.append(None)
+            continue
+        row = []
+        for a in range(b.A):
+            j = int(ns[s, a])
+            key: tuple = ("r", j)
+            if j == sink:
+                s2, _, _ = inst.step(states[s], a)
+                key = ("t", s2)
+            if key not in index:
+                index[key] = len(nodes)
+                nodes.append(key)
+                shown.append(key[1] if key[0] == "t" else states[j])
+            row.append(index[key])
+        nxt.append(row)
+        phi.append(feat[s].tolist())
+    return {"actions": list(b.actions),
+            "states": [to_jsonable(inst.state_to_json(x)) for x in shown],
+            "next": nxt, "terminal": [k == "t" for k, _ in nodes], "phi": phi}
+
+
+def path_states(game: dict, actions: list[str]) -> list[dict]:
+    """The JSON states of a move list played in `game` from its start."""
+    s, out = 0, [game["states"][0]]
+    for a in actions:
+        s = game["next"][s][game["actions"].index(a)]
+        out.append(game["states"][s])
+    return out
