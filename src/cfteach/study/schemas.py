@@ -204,6 +204,13 @@ def _typed_event(type_: str, payload: type[Strict]) -> type[EventRequest]:
                         payload=(payload, ... if required else Field(default_factory=payload)))
 
 
+def as_request(event: EventRequest) -> EventRequest:
+    """A validated body variant as the service takes events: the payload a plain dict."""
+    if isinstance(event.payload, dict):
+        return event
+    return EventRequest.model_construct(**{**dict(event), "payload": event.payload.model_dump()})
+
+
 # The body of POST /api/event: one variant per event type, chosen by `type`, so the OpenAPI
 # schema states each type's payload and an unknown type or a bad payload is refused (422)
 # before the session is looked at. Every variant is an EventRequest.

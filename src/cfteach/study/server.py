@@ -144,7 +144,7 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
         tok = _session_token(request, x_session_token)
         if not event_limit.allow(tok):
             raise ApiError(429, "rate_limited", "too many events; slow down")
-        return JSONResponse(service.post_event(tok, req))
+        return JSONResponse(service.post_event(tok, schemas.as_request(req)))
 
     @app.post("/api/client-report", response_model=Ack,
               responses=errors(400, 413, 415, 422, 429))
