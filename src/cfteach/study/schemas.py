@@ -176,9 +176,9 @@ class TestAnswer(Strict):
 class ItemDone(Strict):
     """The item on screen of a closed-loop teaching phase is done (`actions`: a test's)."""
 
-    item: Annotated[int, Field(ge=0, le=1000)]
+    item: Annotated[int, Field(ge=0, le=1000), Int]
     actions: Annotated[list[Action], Field(max_length=500)] | None = None
-    time_ms: Annotated[int, Field(ge=0, le=86_400_000)] | None = None
+    time_ms: Annotated[int, Field(ge=0, le=86_400_000), Int] | None = None
 
 
 class Demographics(Strict):
