@@ -20,10 +20,10 @@ from pathlib import Path
 from typing import Any
 
 from cfteach.domains.model import Domain, Instance, State
-from cfteach.domains.spec import ACTIONS, DomainFileError, load_toml, parse_spec
+from cfteach.domains.spec import ACTIONS, ActionSpec, DomainFileError, load_toml, parse_spec
 
-__all__ = ["ACTIONS", "Domain", "DomainFileError", "Instance", "State", "builtin_names",
-           "builtin_path", "from_dict", "load"]
+__all__ = ["ACTIONS", "ActionSpec", "Domain", "DomainFileError", "Instance", "State",
+           "builtin_names", "builtin_path", "from_dict", "load"]
 
 
 def builtin_names() -> list[str]:

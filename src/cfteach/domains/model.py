@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from cfteach.domains.spec import MOVES, Cell, Condition, DomainSpec
+from cfteach.domains.spec import MOVES, ActionSpec, Cell, Condition, DomainSpec
 
 State = tuple[int, ...]
 
@@ -57,6 +57,11 @@ class Domain:
             weights=w, weights_raw=raw, prior=prior, posterior=post, actions=spec.actions,
             width=spec.width, height=spec.height, source=spec.source,
         )
+
+    @property
+    def action_specs(self) -> tuple[ActionSpec, ...]:
+        """Name, label, key and effect of each action, in action order."""
+        return self.spec.action_specs
 
     @property
     def max_demos(self) -> int:

@@ -18,6 +18,38 @@ MOVES: dict[str, tuple[int, int]] = {
     "up": (0, 1), "down": (0, -1), "left": (-1, 0), "right": (1, 0)}
 INTERACT: tuple[str, ...] = ("pickup", "dropoff")
 
+#: What an action does to the state. ``move`` shifts the agent by its delta; ``pickup`` and
+#: ``dropoff`` act on the cargo; ``exit`` ends the episode from any non-terminal state;
+#: ``stay`` leaves the state unchanged.
+ACTION_EFFECTS: tuple[str, ...] = ("move", "pickup", "dropoff", "exit", "stay")
+
+
+@dataclass(frozen=True)
+class ActionSpec:
+    """One action of a domain, in the domain's action order (the order breaks ties).
+
+    `key` is the keyboard key the study app binds (a `KeyboardEvent.key` value such as
+    ``"ArrowUp"`` or ``"x"``) and `label` the words shown beside it; the renderer and the
+    Gymnasium environment read the same record.
+    """
+
+    name: str
+    label: str
+    key: str
+    effect: str
+    delta: tuple[int, int] | None = None  # for effect "move"
+
+
+#: The built-in actions, as a domain file that lists action names gets them.
+BUILTIN_ACTIONS: dict[str, ActionSpec] = {
+    "up": ActionSpec("up", "move up", "ArrowUp", "move", (0, 1)),
+    "down": ActionSpec("down", "move down", "ArrowDown", "move", (0, -1)),
+    "left": ActionSpec("left", "move left", "ArrowLeft", "move", (-1, 0)),
+    "right": ActionSpec("right", "move right", "ArrowRight", "move", (1, 0)),
+    "pickup": ActionSpec("pickup", "pick up", "p", "pickup"),
+    "dropoff": ActionSpec("dropoff", "drop", "d", "dropoff"),
+}
+
 Cell = tuple[int, int]
 
 #: Demonstrations per curriculum when a domain file has no ``[teaching] max_demos``.
@@ -95,6 +127,12 @@ class DomainSpec:
     prior: tuple[tuple[int, ...], ...]
     posterior: tuple[tuple[int, ...], ...]
     max_demos: int = DEFAULT_MAX_DEMOS  # [teaching] max_demos: demonstrations per curriculum
+    action_specs: tuple[ActionSpec, ...] = ()  # one per action, same order as `actions`
+
+    def __post_init__(self) -> None:
+        if not self.action_specs:
+            object.__setattr__(self, "action_specs",
+                               tuple(BUILTIN_ACTIONS[a] for a in self.actions))
 
 
 _TOP_KEYS = {"domain", "cells", "agent", "cargo", "consumables", "goal", "variants", "features",
