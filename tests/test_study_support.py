@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 import pytest
+from fastapi.testclient import TestClient
 
 from cfteach.study.build import init_study, toy_sources
 from cfteach.study.db import drop_schema, make_engine
@@ -65,3 +66,16 @@ def test_toy_study_is_complete(toy_study: Path) -> None:
                 "medium"] * 2
     ids = [t["test_id"] for d in s["domains"] for ts in s["tests"][d] for t in ts]
     assert len(ids) == len(set(ids)) == 54
+
+
+def session_state(c: TestClient, token: str) -> dict:
+    """The participant's `/api/state`, asserting the server answered 200."""
+    r = c.get("/api/state", headers={"X-Session-Token": token})
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def researcher_progress(c: TestClient, researcher_token: str = "rt") -> dict:
+    """The researcher's `/api/researcher/progress` view."""
+    return c.get("/api/researcher/progress",
+                 headers={"X-Researcher-Token": researcher_token}).json()

@@ -85,14 +85,8 @@ def _event(c: TestClient, token: str, step: int, type_: str, payload: dict | Non
         "payload": payload or {}})
 
 
-def _state(c: TestClient, token: str) -> dict:
-    r = c.get("/api/state", headers={"X-Session-Token": token})
-    assert r.status_code == 200, r.text
-    return r.json()
-
-
-def _progress(c: TestClient) -> dict:
-    return c.get("/api/researcher/progress", headers={"X-Researcher-Token": "rt"}).json()
+_state = test_study_support.session_state
+_progress = test_study_support.researcher_progress
 
 
 # -- demonstration plays, timed by the server ----------------------------------------------

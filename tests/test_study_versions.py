@@ -36,14 +36,8 @@ def _read(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-def _state(c: TestClient, token: str) -> dict:
-    r = c.get("/api/state", headers={"X-Session-Token": token})
-    assert r.status_code == 200, r.text
-    return r.json()
-
-
-def _progress(c: TestClient) -> dict:
-    return c.get("/api/researcher/progress", headers={"X-Researcher-Token": "rt"}).json()
+_state = test_study_support.session_state
+_progress = test_study_support.researcher_progress
 
 
 def _init(folder: Path, title: str, code: str) -> str:
