@@ -171,11 +171,36 @@ def _primitive(rows: np.ndarray) -> set[tuple[int, ...]]:
     return out
 
 
-def test_taxi_policy_bec_holds_the_original_two_constraints() -> None:
+def _irredundant_in_step_slice(rows: np.ndarray, w_step: float) -> np.ndarray:
+    """The rows still cutting the region once the step weight is fixed at `w_step` and the
+    weights lie in the L1 ball |w|_1 <= 1 (a 2-D polygon): a row is redundant when the
+    others and the ball already keep `row . w >= 0` (LP minimum >= 0, within 1e-9)."""
+    from scipy.optimize import linprog
+
+    ball = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=float)
+    keep = []
+    for i, r in enumerate(rows):
+        others = np.delete(rows, i, axis=0)
+        a_ub = np.vstack([-others[:, :2], ball])
+        b_ub = np.r_[others[:, 2] * w_step, np.full(4, 1 - abs(w_step))]
+        res = linprog(c=r[:2], A_ub=a_ub, b_ub=b_ub, bounds=[(None, None)] * 2)
+        assert res.status == 0, res.message
+        if res.fun + r[2] * w_step < -1e-9:
+            keep.append(r)
+    return np.array(keep)
+
+
+def test_taxi_policy_bec_is_the_original_two_constraints() -> None:
+    """The original's shipped policy BEC: [1, 5, 11] and [-1, -6, -9]. cfteach's cone also
+    keeps [0, 1, -4] and [1, 6, 8]; both are redundant once the step weight is fixed at the
+    true -1/30 inside the L1 ball |w|_1 <= 1 (the original's weights [26, -3, -1] / 30 have
+    L1 norm 1), where exactly the original's two remain."""
     from cfteach.bec import policy_bec
 
-    got = _primitive(policy_bec(load(TAXI)))
+    bec = policy_bec(load(TAXI)).astype(float)
+    got = _primitive(bec)
     assert {(1, 5, 11), (-1, -6, -9)} <= got
+    assert _primitive(_irredundant_in_step_slice(bec, -1 / 30)) == {(1, 5, 11), (-1, -6, -9)}
 
 
 def _replayed_mu(inst, start, first: int, policy: np.ndarray, index) -> np.ndarray:
