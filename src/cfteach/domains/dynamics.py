@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -70,16 +71,30 @@ class Layout:
         self.cons_cells = np.array([c for _, c in spec.consumables],
                                    dtype=np.int64).reshape(-1, 2)
         self.width_of_state = self.cons_off + self.n_cons
-        blocked = spec.cargo.blocked_cells_when_carried if spec.cargo else None
-        self.blocked = self._mask(blocked) if blocked else None
-        self.effect = np.array([ACTION_EFFECTS.index(a.effect) for a in spec.action_specs],
-                               dtype=np.int64)
-        self.delta = np.array([a.delta or (0, 0) for a in spec.action_specs], dtype=np.int64)
         self.n_actions = len(spec.action_specs)
-        self.features = [tuple(self._cond(c) for c in f.any_of) for f in spec.features]
         self.unless = [f.unless for f in spec.features]
         self.goal_agent = spec.goal_kind == "agent_at"
         self.goal = spec.goal
+
+    # Built on first use: `is_terminal` (checked when an instance is created) needs none of it.
+    @cached_property
+    def blocked(self) -> np.ndarray | None:
+        spec = self.spec
+        name = spec.cargo.blocked_cells_when_carried if spec.cargo else None
+        return self._mask(name) if name else None
+
+    @cached_property
+    def effect(self) -> np.ndarray:
+        return np.array([ACTION_EFFECTS.index(a.effect) for a in self.spec.action_specs],
+                        dtype=np.int64)
+
+    @cached_property
+    def delta(self) -> np.ndarray:
+        return np.array([a.delta or (0, 0) for a in self.spec.action_specs], dtype=np.int64)
+
+    @cached_property
+    def features(self) -> list[tuple[_Cond, ...]]:
+        return [tuple(self._cond(c) for c in f.any_of) for f in self.spec.features]
 
     def _mask(self, name: str) -> np.ndarray:
         m = self._masks.get(name)
