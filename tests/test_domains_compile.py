@@ -189,3 +189,30 @@ def test_prefetch_fills_the_same_states_as_one_instance_at_a_time() -> None:
     a.prefetch_states()
     assert [i.states() for i in a.instances()] == [ref_compile(i)[0] for i in b.instances()]
     assert a.n_demonstrations() == sum(len(ref_compile(i)[0]) for i in b.instances())
+
+
+@pytest.mark.parametrize("dom", [load("delivery"), load(EXAMPLE), from_dict(CUSTOM)],
+                         ids=lambda d: d.name)
+def test_step_before_the_states_are_known_and_off_the_reachable_set(dom) -> None:
+    """`Instance.step` answers from its table once the states are known, from the array step
+    otherwise (a fresh instance, or a state no search reached): both equal the reference."""
+    twin = type(dom).from_spec(dom.spec)  # same file, nothing cached
+    for inst, fresh in list(zip(dom.instances(), twin.instances(), strict=True))[::7]:
+        order, _ = ref_compile(inst)
+        for s in order[:: max(1, len(order) // 12)]:
+            for a in range(len(dom.actions)):
+                nxt, phi, term = fresh.step(s, a)
+                assert "_states" not in fresh.__dict__
+                assert (nxt, phi.tolist(), term) == ref_step(inst, s, a)
+        inst.states()
+        goal = list(inst.initial_state)  # a terminal state: never in the table
+        if dom.spec.goal_kind == "agent_at":
+            goal[0:2] = dom.spec.goal
+        else:
+            goal[2:5] = [*dom.spec.goal, 0]
+        goal = tuple(goal)
+        assert goal not in order
+        for a in range(len(dom.actions)):
+            nxt, phi, term = inst.step(goal, a)
+            stays = (goal, [0] * dom.n_features, True)
+            assert (nxt, phi.tolist(), term) == ref_step(inst, goal, a) == stays

@@ -189,19 +189,19 @@ def step_arrays(lay: Layout, row: np.ndarray, states: np.ndarray, act: np.ndarra
     nx = ax + lay.delta[act, 0]
     ny = ay + lay.delta[act, 1]
     inside = (nx >= 1) & (nx <= lay.width) & (ny >= 1) & (ny <= lay.height)
-    cx_ = np.clip(nx, 0, lay.width + 1)
-    cy_ = np.clip(ny, 0, lay.height + 1)
+    cx_ = np.minimum(np.maximum(nx, 0), lay.width + 1)  # np.clip is slow on small arrays
+    cy_ = np.minimum(np.maximum(ny, 0), lay.height + 1)
     moved = (eff == _MOVE) & inside & ~lay.wall[cx_, cy_]
     if lay.blocked is not None:
         moved &= ~(held & lay.blocked[row, cx_, cy_])
     moved &= ~was_term
     nxt = states.copy()
-    nxt[moved, 0] = nx[moved]
-    nxt[moved, 1] = ny[moved]
+    nxt[:, 0] = np.where(moved, nx, ax)
+    nxt[:, 1] = np.where(moved, ny, ay)
     if lay.has_cargo:
         carried = moved & held
-        nxt[carried, 2] = nx[carried]
-        nxt[carried, 3] = ny[carried]
+        nxt[:, 2] = np.where(carried, nx, states[:, 2])
+        nxt[:, 3] = np.where(carried, ny, states[:, 3])
         pick = ((eff == _PICKUP) & lay.cargo_present[row] & ~held
                 & (states[:, 2] == ax) & (states[:, 3] == ay) & ~was_term)
         nxt[pick, 4] = 1

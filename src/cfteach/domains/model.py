@@ -19,6 +19,18 @@ from cfteach.domains.dynamics import Layout, explore, step_arrays
 from cfteach.domains.spec import ActionSpec, Cell, DomainSpec
 
 State = tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class _Table:
+    """Every transition from an instance's reachable states: row `index[s] * A + a`."""
+
+    index: dict[State, int]
+    next: np.ndarray  # int64 [n * A, L]
+    phi: np.ndarray  # bool [n * A, F]
+    terminal: np.ndarray  # bool [n * A]
+
+
 _ROW0 = np.zeros(1, dtype=np.int64)  # the one instance of a single-instance layout
 
 
@@ -210,12 +222,31 @@ class Instance:
         """Apply action (index into the domain's actions): (next state, phi[F], terminal).
 
         After `exit` the next state is the state it left, flagged terminal. The semantics live
-        in `cfteach.domains.dynamics.step_arrays`, shared with the compiled arrays."""
-        if not -len(self._action_names) <= action < len(self._action_names):
+        in `cfteach.domains.dynamics.step_arrays`, shared with the compiled arrays. Once the
+        instance's reachable states are known (`states()`, a compile), every transition from
+        them is tabulated by one array step, and later calls read the table."""
+        n_a = len(self._action_names)
+        if not -n_a <= action < n_a:
             raise IndexError(f"action index {action} out of range for {self!r}")
+        if "_states" in self.__dict__:
+            table = self._table
+            row = table.index.get(tuple(state))
+            if row is not None:
+                k = row * n_a + action % n_a
+                return (tuple(table.next[k].tolist()), table.phi[k].astype(float),
+                        bool(table.terminal[k]))
         nxt, phi, term = step_arrays(self._layout, _ROW0, np.asarray([state], dtype=np.int64),
                                      np.asarray([action], dtype=np.int64))
         return tuple(nxt[0].tolist()), phi[0].astype(float), bool(term[0])
+
+    @cached_property
+    def _table(self) -> _Table:
+        states = np.asarray(self._states, dtype=np.int64)
+        n, n_a = len(states), len(self._action_names)
+        nxt, phi, term = step_arrays(self._layout, np.zeros(n * n_a, dtype=np.int64),
+                                     np.repeat(states, n_a, axis=0),
+                                     np.tile(np.arange(n_a, dtype=np.int64), n))
+        return _Table({s: i for i, s in enumerate(self._states)}, nxt, phi, term)
 
     def states(self) -> list[State]:
         """Reachable non-terminal states, BFS over actions in order, the initial state first."""
