@@ -71,6 +71,12 @@ EXIT = {"name": "exit", "key": "x", "effect": "exit"}
      "domain.actions[0].name", "reserved"),
     (_set_actions([{"name": "wait", "key": "w", "effect": "stay", "colour": 1}]),
      "domain.actions[0].colour", "unknown key"),
+    (_set_actions([{"name": "wait", "key": "wait", "effect": "stay"}]),
+     "domain.actions[0].key", "one character or a key name"),
+    (_set_actions([{"name": "wait", "key": "", "effect": "stay"}]),
+     "domain.actions[0].key", "one character or a key name"),
+    (_set_actions([{"name": "wait", "key": 7, "effect": "stay"}]),
+     "domain.actions[0].key", "one character or a key name"),
     (_set_actions(["jump"]), "domain.actions[0]", "unknown action 'jump'"),
     (_set_actions([]), "domain.actions", "at least one action"),
     (_set_when(2, {"action": "quit"}), "features[2].when.action[0]", "unknown action 'quit'"),
@@ -98,11 +104,12 @@ def test_cargo_at_needs_a_cargo() -> None:
 
 def test_declared_actions_keep_their_order_and_records() -> None:
     dom = from_dict(_with(_set_actions([
-        {"name": "wait", "label": "wait a turn", "key": "w", "effect": "stay"},
+        {"name": "wait", "label": "wait a turn", "key": " ", "effect": "stay"},
         "left", {"name": "up", "key": "k"}, EXIT, "right", "down", "pickup", "dropoff"])))
     assert dom.actions == ("wait", "left", "up", "exit", "right", "down", "pickup", "dropoff")
     specs = {a.name: a for a in dom.action_specs}
     assert specs["wait"].label == "wait a turn" and specs["wait"].effect == "stay"
+    assert specs["wait"].key == " "  # the space bar
     assert specs["up"] == ActionSpec("up", "move up", "k", "move", (0, 1))
     assert specs["left"] == BUILTIN_ACTIONS["left"]
     assert specs["exit"].label == "exit"  # the label defaults to the name

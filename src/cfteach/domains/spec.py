@@ -8,6 +8,7 @@ the key path (e.g. ``features[1].when.from_cells``) and the problem.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -145,6 +146,7 @@ _DOMAIN_KEYS = {"name", "title", "description", "reference_name", "width", "heig
 _COND_KEYS = {"action", "moved", "carrying", "from_cells", "leaves_cells", "to_cells", "consumes",
               "cargo_at", "not"}
 _ACTION_KEYS = {"name", "label", "key", "effect", "delta"}
+_KEY_RE = re.compile(r".|[A-Z][A-Za-z0-9]+", re.S)  # a character, or a named key ("ArrowUp")
 #: Words an `action` condition accepts besides action names, so no action may be named so.
 _ACTION_GROUPS = ("move", "interact")
 
@@ -459,7 +461,10 @@ def _action_table(c: _Checker, item: Any, key: str) -> ActionSpec:
     if "key" not in t and base is None:
         raise c.fail(f"{key}.key", "missing required key (the keyboard key the study app "
                                    "binds, e.g. \"x\" or \"ArrowUp\")")
-    kb = c.string(t["key"], f"{key}.key") if "key" in t else base.key
+    kb = base.key if base is not None and "key" not in t else t["key"]
+    if not isinstance(kb, str) or not _KEY_RE.fullmatch(kb) or not kb.isprintable():
+        raise c.fail(f"{key}.key", f"must be one character or a key name such as \"ArrowUp\" "
+                                   f"or \"Enter\" (a KeyboardEvent.key value), got {kb!r}")
     label = c.string(t.get("label", base.label if base else name), f"{key}.label")
     return ActionSpec(name, label, kb, effect, delta)
 
