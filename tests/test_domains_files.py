@@ -83,7 +83,7 @@ _DELETE = object()
     ("beliefs.prior", [[0, 0]], "beliefs.prior[0]", "has 2 entries"),
     ("beliefs.prior", [[0, 0, 0.5]], "beliefs.prior[0][2]", "must be an integer"),
     ("consumables[0].name", "passenger", "consumables[0].name", "already used"),
-    ("domain.actions", ["up", "up"], "domain.actions", "twice"),
+    ("domain.actions", ["up", "up"], "domain.actions[1]", "twice"),
     ("domain.discount", 0.9, "domain.discount", "only 1.0"),
     ("teaching.max_demos", 0, "teaching.max_demos", "must be at least 1"),
     ("teaching.max_demos", "5", "teaching.max_demos", "must be an integer"),

@@ -20,9 +20,18 @@ from pathlib import Path
 from typing import Any
 
 from cfteach.domains.model import Domain, Instance, State
-from cfteach.domains.spec import ACTIONS, ActionSpec, DomainFileError, load_toml, parse_spec
+from cfteach.domains.spec import (
+    ACTION_EFFECTS,
+    ACTIONS,
+    BUILTIN_ACTIONS,
+    ActionSpec,
+    DomainFileError,
+    load_toml,
+    parse_spec,
+)
 
-__all__ = ["ACTIONS", "ActionSpec", "Domain", "DomainFileError", "Instance", "State",
+__all__ = ["ACTIONS", "ACTION_EFFECTS", "BUILTIN_ACTIONS", "ActionSpec", "Domain",
+           "DomainFileError", "Instance", "State",
            "builtin_names", "builtin_path", "from_dict", "load"]
 
 

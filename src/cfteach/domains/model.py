@@ -9,17 +9,29 @@ features are computed per transition (s, a, s').
 from __future__ import annotations
 
 import itertools
-from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
 import numpy as np
 
-from cfteach.domains.spec import MOVES, ActionSpec, Cell, Condition, DomainSpec
+from cfteach.domains.dynamics import Layout, explore, step_arrays
+from cfteach.domains.spec import ActionSpec, Cell, DomainSpec
 
 State = tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class _Table:
+    """Every transition from an instance's reachable states: row `index[s] * A + a`."""
+
+    index: dict[State, int]
+    next: np.ndarray  # int64 [n * A, L]
+    phi: np.ndarray  # bool [n * A, F]
+    terminal: np.ndarray  # bool [n * A]
+
+
+_ROW0 = np.zeros(1, dtype=np.int64)  # the one instance of a single-instance layout
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,7 +121,22 @@ class Domain:
 
     def n_demonstrations(self) -> int:
         """Candidate demonstrations = reachable non-terminal states over all instances."""
+        self.prefetch_states()
         return sum(len(inst.states()) for inst in self._instances)
+
+    def prefetch_states(self, indices: list[int] | None = None, chunk: int = 1024) -> None:
+        """Search the reachable states of many instances at once (one vectorised search per
+        `chunk` instances) and keep them where `Instance.states()` finds them: much faster
+        than one instance at a time."""
+        insts = [self._instances[i] for i in (range(len(self._instances)) if indices is None
+                                               else indices)]
+        insts = [i for i in insts if "_states" not in i.__dict__]
+        for lo in range(0, len(insts), chunk):
+            part = insts[lo:lo + chunk]
+            found = explore(Layout(part), np.array([i.initial_state for i in part],
+                                                   dtype=np.int64))
+            for inst, st in zip(part, found.states, strict=True):
+                inst.__dict__["_states"] = tuple(map(tuple, st.tolist()))
 
 
 class Instance:
@@ -147,9 +174,6 @@ class Instance:
         self._n_cons = len(spec.consumables)
         self._cons_cells = tuple(c for _, c in spec.consumables)
         self._cons_names = tuple(n for n, _ in spec.consumables)
-        self._feature_fns = [self._compile_feature(f.any_of) for f in spec.features]
-        self._unless = [f.unless for f in spec.features]
-        self._move = [MOVES.get(a) for a in spec.actions]
         self._action_names = spec.actions
         self._spec = spec
 
@@ -186,82 +210,43 @@ class Instance:
         return tuple(self._cells)
 
     # -------------------------------------------------------------- dynamics
+    @cached_property
+    def _layout(self) -> Layout:
+        return Layout([self])
+
     def is_terminal(self, state: State) -> bool:
-        spec = self._spec
-        if spec.goal_kind == "agent_at":
-            return (state[0], state[1]) == spec.goal
-        return (self.cargo_present and state[4] == 0
-                and (state[2], state[3]) == spec.goal)
-
-    def _compile_feature(self, any_of: tuple[Condition, ...]) -> Callable[..., bool]:
-        if not any_of:
-            return lambda a, moved, carrying, cell, consumed: True
-        tests = [self._compile_condition(cond) for cond in any_of]
-        return lambda *ctx: any(t(*ctx) for t in tests)
-
-    def _compile_condition(self, cond: Condition) -> Callable[..., bool]:
-        from_set = self._cells[cond.from_cells] if cond.from_cells else None
-        leave_set = self._cells[cond.leaves_cells] if cond.leaves_cells else None
-        cons_i = self._cons_names.index(cond.consumes) if cond.consumes else None
-
-        def test(a: str, moved: bool, carrying: bool, cell: Cell, consumed: list[int]) -> bool:
-            if cond.actions is not None and a not in cond.actions:
-                return False
-            if cond.moved is not None and moved != cond.moved:
-                return False
-            if cond.carrying is not None and carrying != cond.carrying:
-                return False
-            if from_set is not None and cell not in from_set:
-                return False
-            if leave_set is not None and not (moved and cell in leave_set):
-                return False
-            return not (cons_i is not None and cons_i not in consumed)
-
-        return test
+        """Whether the goal holds in `state` (the agent on it, or the cargo delivered)."""
+        return bool(self._layout.is_terminal(_ROW0, np.asarray([state], dtype=np.int64))[0])
 
     def step(self, state: State, action: int) -> tuple[State, np.ndarray, bool]:
-        """Apply action (index into the domain's actions): (next state, phi[F], terminal)."""
-        n_f = len(self._feature_fns)
-        if self.is_terminal(state):
-            return state, np.zeros(n_f), True
-        s = list(state)
-        ax, ay = s[0], s[1]
-        held = bool(self.has_cargo_slot and s[4])
-        name = self._action_names[action]
-        delta = self._move[action]
-        if delta is not None:
-            nx, ny = ax + delta[0], ay + delta[1]
-            if (1 <= nx <= self._spec.width and 1 <= ny <= self._spec.height
-                    and (nx, ny) not in self.walls
-                    and not (held and (nx, ny) in self._blocked)):
-                s[0], s[1] = nx, ny
-                if held:
-                    s[2], s[3] = nx, ny
-        elif name == "pickup":
-            if self.cargo_present and not held and (s[2], s[3]) == (ax, ay):
-                s[4] = 1
-        elif name == "dropoff":
-            if held:
-                s[4] = 0
-        moved = (s[0], s[1]) != (ax, ay)
-        consumed: list[int] = []
-        if moved:
-            off = 5 if self.has_cargo_slot else 2
-            for i in range(self._n_cons):
-                if s[off + i] and self._cons_cells[i] == (ax, ay):
-                    s[off + i] = 0
-                    consumed.append(i)
-        phi = np.zeros(n_f)
-        fired = [False] * n_f
-        cell = (ax, ay)
-        for i, fn in enumerate(self._feature_fns):
-            if any(fired[j] for j in self._unless[i]):
-                continue
-            if fn(name, moved, held, cell, consumed):
-                fired[i] = True
-                phi[i] = 1.0
-        nxt = tuple(s)
-        return nxt, phi, self.is_terminal(nxt)
+        """Apply action (index into the domain's actions): (next state, phi[F], terminal).
+
+        After `exit` the next state is the state it left, flagged terminal. The semantics live
+        in `cfteach.domains.dynamics.step_arrays`, shared with the compiled arrays. Once the
+        instance's reachable states are known (`states()`, a compile), every transition from
+        them is tabulated by one array step, and later calls read the table."""
+        n_a = len(self._action_names)
+        if not -n_a <= action < n_a:
+            raise IndexError(f"action index {action} out of range for {self!r}")
+        if "_states" in self.__dict__:
+            table = self._table
+            row = table.index.get(tuple(state))
+            if row is not None:
+                k = row * n_a + action % n_a
+                return (tuple(table.next[k].tolist()), table.phi[k].astype(float),
+                        bool(table.terminal[k]))
+        nxt, phi, term = step_arrays(self._layout, _ROW0, np.asarray([state], dtype=np.int64),
+                                     np.asarray([action], dtype=np.int64))
+        return tuple(nxt[0].tolist()), phi[0].astype(float), bool(term[0])
+
+    @cached_property
+    def _table(self) -> _Table:
+        states = np.asarray(self._states, dtype=np.int64)
+        n, n_a = len(states), len(self._action_names)
+        nxt, phi, term = step_arrays(self._layout, np.zeros(n * n_a, dtype=np.int64),
+                                     np.repeat(states, n_a, axis=0),
+                                     np.tile(np.arange(n_a, dtype=np.int64), n))
+        return _Table({s: i for i, s in enumerate(self._states)}, nxt, phi, term)
 
     def states(self) -> list[State]:
         """Reachable non-terminal states, BFS over actions in order, the initial state first."""
@@ -269,19 +254,8 @@ class Instance:
 
     @cached_property
     def _states(self) -> tuple[State, ...]:
-        seen = {self.initial_state}
-        order = [self.initial_state]
-        queue = deque(order)
-        n_a = len(self._action_names)
-        while queue:
-            s = queue.popleft()
-            for a in range(n_a):
-                nxt, _, term = self.step(s, a)
-                if not term and nxt not in seen:
-                    seen.add(nxt)
-                    order.append(nxt)
-                    queue.append(nxt)
-        return tuple(order)
+        found = explore(self._layout, np.asarray([self.initial_state], dtype=np.int64))
+        return tuple(map(tuple, found.states[0].tolist()))
 
     # ------------------------------------------------------------ JSON views
     def state_to_json(self, state: State) -> dict[str, Any]:

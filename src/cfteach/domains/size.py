@@ -106,6 +106,7 @@ def estimate_size(dom: Domain, sample: int = SAMPLE_INSTANCES, seed: int = 0) ->
         else:  # the all-off and all-on instances, and random ones between
             rng = np.random.default_rng(seed)
             idx = sorted({0, n_inst - 1, *(int(i) for i in rng.integers(0, n_inst, sample - 2))})
+        dom.prefetch_states(idx)
         per = [len(dom.instance(i).states()) for i in idx]
         exact = len(idx) == n_inst
     s_max = max(per)

@@ -8,6 +8,7 @@ the key path (e.g. ``features[1].when.from_cells``) and the problem.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -77,6 +78,9 @@ class Condition:
     from_cells: str | None = None
     leaves_cells: str | None = None
     consumes: str | None = None
+    to_cells: str | None = None  # the agent moved and its cell in s' is in the set
+    cargo_at: frozenset[Cell] | str | None = None  # cells, or a cell set, holding the cargo in s
+    negated: tuple[Condition, ...] = ()  # `not = {...}`: none of these may hold
 
 
 @dataclass(frozen=True)
@@ -139,7 +143,12 @@ _TOP_KEYS = {"domain", "cells", "agent", "cargo", "consumables", "goal", "varian
              "beliefs", "teaching"}
 _DOMAIN_KEYS = {"name", "title", "description", "reference_name", "width", "height", "discount",
                 "actions", "walls"}
-_COND_KEYS = {"action", "moved", "carrying", "from_cells", "leaves_cells", "consumes"}
+_COND_KEYS = {"action", "moved", "carrying", "from_cells", "leaves_cells", "to_cells", "consumes",
+              "cargo_at", "not"}
+_ACTION_KEYS = {"name", "label", "key", "effect", "delta"}
+_KEY_RE = re.compile(r".|[A-Z][A-Za-z0-9]+", re.S)  # a character, or a named key ("ArrowUp")
+#: Words an `action` condition accepts besides action names, so no action may be named so.
+_ACTION_GROUPS = ("move", "interact")
 
 
 class _Checker:
@@ -250,19 +259,9 @@ def parse_spec(data: Any, source: str = "<dict>") -> DomainSpec:
     if discount != 1.0:
         raise c.fail("domain.discount", f"only 1.0 is supported (undiscounted, as in the "
                                         f"reference), got {discount}")
-    if "actions" in d:
-        acts = c.array(d["actions"], "domain.actions")
-        if not acts:
-            raise c.fail("domain.actions", "must list at least one action")
-        for i, a in enumerate(acts):
-            if a not in ACTIONS:
-                raise c.fail(f"domain.actions[{i}]",
-                             f"unknown action {a!r} (known: {', '.join(ACTIONS)})")
-        if len(set(acts)) != len(acts):
-            raise c.fail("domain.actions", "lists an action twice")
-        actions = tuple(acts)
-    else:
-        actions = ACTIONS
+    action_specs = (_actions(c, d["actions"], "domain.actions") if "actions" in d
+                    else tuple(BUILTIN_ACTIONS[a] for a in ACTIONS))
+    actions = tuple(a.name for a in action_specs)
     walls = frozenset(c.cells(d.get("walls", []), "domain.walls", width, height))
 
     taken: dict[str, str] = {"agent": "the agent", "carrying": "the carrying flag"}
@@ -356,10 +355,11 @@ def parse_spec(data: Any, source: str = "<dict>") -> DomainSpec:
             if not alts:
                 raise c.fail(f"{key}.any", "must list at least one condition table")
             any_of = tuple(_condition(c, v, f"{key}.any[{j}]", cell_sets, consumable_names,
-                                      actions) for j, v in enumerate(alts))
+                                      action_specs, cargo, width, height, walls)
+                           for j, v in enumerate(alts))
         elif "when" in t:
             any_of = (_condition(c, t["when"], f"{key}.when", cell_sets, consumable_names,
-                                 actions),)
+                                 action_specs, cargo, width, height, walls),)
         else:
             any_of = ()
         unless = []
@@ -392,27 +392,105 @@ def parse_spec(data: Any, source: str = "<dict>") -> DomainSpec:
         actions=actions, walls=walls, cells=tuple(cell_sets.items()), agent_start=agent_start,
         cargo=cargo, consumables=tuple(consumables), goal_kind=goal_kind, goal=goal,
         variants=tuple(variants), features=tuple(features), prior=prior, posterior=posterior,
-        max_demos=max_demos,
+        max_demos=max_demos, action_specs=action_specs,
     )
 
 
+def _actions(c: _Checker, value: Any, key: str) -> tuple[ActionSpec, ...]:
+    """`domain.actions`: built-in names and/or tables declaring actions, in tie-break order."""
+    items = c.array(value, key)
+    if not items:
+        raise c.fail(key, "must list at least one action")
+    out: list[ActionSpec] = []
+    names: dict[str, str] = {}
+    keys: dict[str, str] = {}
+    for i, item in enumerate(items):
+        k = f"{key}[{i}]"
+        if isinstance(item, str):
+            if item not in BUILTIN_ACTIONS:
+                raise c.fail(k, f"unknown action {item!r} (built-in: {', '.join(ACTIONS)}; "
+                                "declare others as a table {name, label, key, effect})")
+            spec = BUILTIN_ACTIONS[item]
+        else:
+            spec = _action_table(c, item, k)
+        if spec.name in names:
+            raise c.fail(f"{k}.name" if isinstance(item, dict) else k,
+                         f"lists action {spec.name!r} twice (also {names[spec.name]})")
+        if spec.key in keys:
+            raise c.fail(f"{k}.key" if isinstance(item, dict) else k,
+                         f"key {spec.key!r} of action {spec.name!r} is already bound to "
+                         f"{keys[spec.key]}")
+        names[spec.name] = k
+        keys[spec.key] = f"action {spec.name!r}"
+        out.append(spec)
+    return tuple(out)
+
+
+def _action_table(c: _Checker, item: Any, key: str) -> ActionSpec:
+    """One declared action. A built-in name may be given as a table to relabel or rebind it
+    (its effect and delta then default to the built-in's)."""
+    t = c.table(item, key, _ACTION_KEYS, {"name"})
+    name = c.string(t["name"], f"{key}.name")
+    if name in _ACTION_GROUPS:
+        raise c.fail(f"{key}.name", f"{name!r} is reserved (a condition's `action = {name!r}` "
+                                    "means a group of actions)")
+    base = BUILTIN_ACTIONS.get(name)
+    if "effect" not in t and base is None:
+        raise c.fail(f"{key}.effect", "missing required key (one of "
+                                      f"{', '.join(ACTION_EFFECTS)})")
+    effect = c.string(t["effect"], f"{key}.effect") if "effect" in t else base.effect
+    if effect not in ACTION_EFFECTS:
+        raise c.fail(f"{key}.effect",
+                     f"unknown effect {effect!r} (known: {', '.join(ACTION_EFFECTS)})")
+    delta = None
+    if effect == "move":
+        if "delta" in t:
+            raw = t["delta"]
+            if (not isinstance(raw, list) or len(raw) != 2
+                    or any(isinstance(v, bool) or not isinstance(v, int) for v in raw)):
+                raise c.fail(f"{key}.delta", f"must be [dx, dy], two integers, got {raw!r}")
+            delta = (int(raw[0]), int(raw[1]))
+            if delta == (0, 0):
+                raise c.fail(f"{key}.delta", "must not be [0, 0] (use effect = \"stay\")")
+        elif base is not None and base.effect == "move":
+            delta = base.delta
+        else:
+            raise c.fail(f"{key}.delta", "a move needs delta = [dx, dy] (x right, y up)")
+    elif "delta" in t:
+        raise c.fail(f"{key}.delta", f"only a move has a delta (effect is {effect!r})")
+    if "key" not in t and base is None:
+        raise c.fail(f"{key}.key", "missing required key (the keyboard key the study app "
+                                   "binds, e.g. \"x\" or \"ArrowUp\")")
+    kb = base.key if base is not None and "key" not in t else t["key"]
+    if not isinstance(kb, str) or not _KEY_RE.fullmatch(kb) or not kb.isprintable():
+        raise c.fail(f"{key}.key", f"must be one character or a key name such as \"ArrowUp\" "
+                                   f"or \"Enter\" (a KeyboardEvent.key value), got {kb!r}")
+    label = c.string(t.get("label", base.label if base else name), f"{key}.label")
+    return ActionSpec(name, label, kb, effect, delta)
+
+
 def _condition(c: _Checker, value: Any, key: str, cell_sets: dict[str, Any],
-               consumables: set[str], actions: tuple[str, ...]) -> Condition:
+               consumables: set[str], actions: tuple[ActionSpec, ...],
+               cargo: CargoSpec | None, width: int, height: int,
+               walls: frozenset[Cell]) -> Condition:
     t = c.table(value, key, _COND_KEYS)
+    names = tuple(a.name for a in actions)
     acts = None
     if "action" in t:
         raw = t["action"]
         if raw == "move":
-            raw = [a for a in actions if a in MOVES]
+            raw = [a.name for a in actions if a.effect == "move"]
         elif raw == "interact":
-            raw = [a for a in actions if a in INTERACT]
+            raw = [a.name for a in actions if a.effect in INTERACT]
+        elif isinstance(raw, str):
+            raw = [raw]
         raw = c.array(raw, f"{key}.action")
         for j, a in enumerate(raw):
-            if a not in actions:
+            if a not in names:
                 raise c.fail(f"{key}.action[{j}]", f"unknown action {a!r} (known: "
-                             f"{', '.join(actions)}, or the words \"move\" / \"interact\")")
+                             f"{', '.join(names)}, or the words \"move\" / \"interact\")")
         acts = frozenset(raw)
-    for k in ("from_cells", "leaves_cells"):
+    for k in ("from_cells", "leaves_cells", "to_cells"):
         if k in t:
             s = c.string(t[k], f"{key}.{k}")
             if s not in cell_sets:
@@ -421,6 +499,25 @@ def _condition(c: _Checker, value: Any, key: str, cell_sets: dict[str, Any],
         s = c.string(t["consumes"], f"{key}.consumes")
         if s not in consumables:
             raise c.fail(f"{key}.consumes", f"unknown consumable {s!r}")
+    cargo_at: frozenset[Cell] | str | None = None
+    if "cargo_at" in t:
+        if cargo is None:
+            raise c.fail(f"{key}.cargo_at", "needs a [cargo] table")
+        raw = t["cargo_at"]
+        if isinstance(raw, str):
+            if raw not in cell_sets:
+                raise c.fail(f"{key}.cargo_at",
+                             f"unknown cell set {raw!r} (declare it under [cells])")
+            cargo_at = raw
+        else:
+            cells = c.cells(raw, f"{key}.cargo_at", width, height, walls)
+            if not cells:
+                raise c.fail(f"{key}.cargo_at", "must list at least one cell")
+            cargo_at = frozenset(cells)
+    negated: tuple[Condition, ...] = ()
+    if "not" in t:
+        negated = (_condition(c, t["not"], f"{key}.not", cell_sets, consumables, actions,
+                              cargo, width, height, walls),)
     return Condition(
         actions=acts,
         moved=c.boolean(t["moved"], f"{key}.moved") if "moved" in t else None,
@@ -428,6 +525,9 @@ def _condition(c: _Checker, value: Any, key: str, cell_sets: dict[str, Any],
         from_cells=t.get("from_cells"),
         leaves_cells=t.get("leaves_cells"),
         consumes=t.get("consumes"),
+        to_cells=t.get("to_cells"),
+        cargo_at=cargo_at,
+        negated=negated,
     )
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cfteach.domains import Domain, Instance, State
+from cfteach.domains.dynamics import Layout, explore
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,31 +91,45 @@ class MDPBatch:
         return self.features @ np.asarray(w, dtype=float)
 
 
+#: Instances explored together: bounds the search's working memory (cell masks, one layer).
+CHUNK_INSTANCES = 1024
+
+
 def compile_instances(instances: Sequence[Instance]) -> MDPBatch:
-    """Tabulate successors and features of every reachable state of every instance."""
+    """Tabulate successors and features of every reachable state of every instance.
+
+    The reachable states and their transitions come from one vectorised breadth-first search
+    per chunk of instances (`cfteach.domains.dynamics.explore`): same state order, indices
+    and features as stepping `Instance.step` state by state, each transition computed once.
+    """
     if not instances:
         raise ValueError("compile_instances needs at least one instance")
     dom = instances[0].domain
     if any(inst.domain is not dom for inst in instances):
         raise ValueError("all instances of a batch must come from the same domain object")
-    states = [tuple(inst.states()) for inst in instances]
-    n = np.array([len(s) for s in states], dtype=np.int64)
+    parts = []
+    for lo in range(0, len(instances), CHUNK_INSTANCES):
+        chunk = instances[lo:lo + CHUNK_INSTANCES]
+        lay = Layout(chunk)
+        parts.append((lo, explore(lay, np.array([i.initial_state for i in chunk],
+                                                dtype=np.int64))))
+    n = np.array([len(st) for _, found in parts for st in found.states], dtype=np.int64)
     e_count, s_count, a_count, f_count = len(instances), int(n.max()) + 1, len(dom.actions), \
         dom.n_features
     sink = s_count - 1
     nxt = np.tile(np.arange(s_count, dtype=np.int64)[None, :, None], (e_count, 1, a_count))
     feats = np.zeros((e_count, s_count, a_count, f_count))
-    valid = np.zeros((e_count, s_count), dtype=bool)
-    index = []
-    for e, inst in enumerate(instances):
-        idx = {s: i for i, s in enumerate(states[e])}
-        index.append(idx)
-        valid[e, : n[e]] = True
-        for i, s in enumerate(states[e]):
-            for a in range(a_count):
-                s2, phi, term = inst.step(s, a)
-                nxt[e, i, a] = sink if term else idx[s2]
-                feats[e, i, a] = phi
+    valid = np.arange(s_count)[None, :] < n[:, None]
+    states: list[tuple[State, ...]] = []
+    for lo, found in parts:
+        e = found.row + lo
+        nxt[e, found.src, found.action] = np.where(found.dest < 0, sink, found.dest)
+        feats[e, found.src, found.action] = found.phi
+        for r, st in enumerate(found.states):
+            tup = tuple(map(tuple, st.tolist()))
+            states.append(tup)
+            instances[lo + r].__dict__.setdefault("_states", tup)  # Instance.states() cache
+    index = [{s: i for i, s in enumerate(st)} for st in states]
     for arr in (nxt, feats, valid, n):
         arr.setflags(write=False)
     return MDPBatch(next_state=nxt, features=feats, valid=valid, n_states=n,
