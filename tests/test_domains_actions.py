@@ -178,36 +178,44 @@ def _primitive(rows: np.ndarray) -> set[tuple[int, ...]]:
     return out
 
 
-def _irredundant_in_step_slice(rows: np.ndarray, w_step: float) -> np.ndarray:
-    """The rows still cutting the region once the step weight is fixed at `w_step` and the
-    weights lie in the L1 ball |w|_1 <= 1 (a 2-D polygon): a row is redundant when the
-    others and the ball already keep `row . w >= 0` (LP minimum >= 0, within 1e-9)."""
-    from scipy.optimize import linprog
-
-    ball = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=float)
-    keep = []
-    for i, r in enumerate(rows):
-        others = np.delete(rows, i, axis=0)
-        a_ub = np.vstack([-others[:, :2], ball])
-        b_ub = np.r_[others[:, 2] * w_step, np.full(4, 1 - abs(w_step))]
-        res = linprog(c=r[:2], A_ub=a_ub, b_ub=b_ub, bounds=[(None, None)] * 2)
-        assert res.status == 0, res.message
-        if res.fun + r[2] * w_step < -1e-9:
-            keep.append(r)
-    return np.array(keep)
+def _slice_grid(w_step: float, n: int = 801) -> np.ndarray:
+    """Points (w0, w1, w_step) of a dense grid on the slice |w0| + |w1| <= 1 - |w_step|."""
+    r = 1 - abs(w_step)
+    u = np.linspace(-r, r, n)
+    g = np.stack(np.meshgrid(u, u, indexing="ij"), axis=-1).reshape(-1, 2)
+    g = g[np.abs(g).sum(axis=1) <= r]
+    return np.c_[g, np.full(len(g), w_step)]
 
 
 def test_taxi_policy_bec_is_the_original_two_constraints() -> None:
-    """The original's shipped policy BEC: [1, 5, 11] and [-1, -6, -9]. cfteach's cone also
-    keeps [0, 1, -4] and [1, 6, 8]; both are redundant once the step weight is fixed at the
-    true -1/30 inside the L1 ball |w|_1 <= 1 (the original's weights [26, -3, -1] / 30 have
-    L1 norm 1), where exactly the original's two remain."""
+    """The original's shipped policy BEC: [1, 5, 11] and [-1, -6, -9]. Its learners were told
+    the step cost, so its BEC is reduced on that slice: `policy_bec(known=["step"])`. On the
+    sphere the cone also keeps [0, 1, -4] and [1, 6, 8]. Checked by brute force on a grid of
+    the slice: every kept row cuts points the other kept row allows, and no dropped row cuts a
+    point the kept rows allow."""
     from cfteach.bec import policy_bec
 
-    bec = policy_bec(load(TAXI)).astype(float)
-    got = _primitive(bec)
-    assert {(1, 5, 11), (-1, -6, -9)} <= got
-    assert _primitive(_irredundant_in_step_slice(bec, -1 / 30)) == {(1, 5, 11), (-1, -6, -9)}
+    dom = load(TAXI)
+    sphere = policy_bec(dom)
+    sliced = policy_bec(dom, known=["step"])
+    assert _primitive(sliced) == {(1, 5, 11), (-1, -6, -9)}
+    assert _primitive(sphere) == {(1, 5, 11), (-1, -6, -9), (0, 1, -4), (1, 6, 8)}
+    pts = _slice_grid(-1 / 30)
+    vals = pts @ sliced.T
+    for i in range(len(sliced)):
+        others = np.delete(vals, i, axis=1)
+        assert np.any((others >= 0).all(axis=1) & (vals[:, i] < -1e-3))  # row i cuts
+    inside = (vals >= 0).all(axis=1)
+    assert inside.sum() > 20  # a thin wedge, but many grid points
+    for row in sphere:
+        assert (pts[inside] @ row >= -1e-9).all()  # every sphere row holds on the slice
+
+
+def test_policy_bec_known_names_an_unknown_feature() -> None:
+    from cfteach.bec import policy_bec
+
+    with pytest.raises(ValueError, match="unknown feature.*'speed'"):
+        policy_bec(load(TAXI), known=["speed"])
 
 
 def _replayed_mu(inst, start, first: int, policy: np.ndarray, index) -> np.ndarray:

@@ -18,6 +18,7 @@ Every candidate demonstration of a domain at once (what teaching uses): `demo_se
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,7 @@ from cfteach.bec.constraints import (
 )
 from cfteach.bec.demos import PROFILES, VI_METHOD, DemoSet, check_profile, demo_set
 from cfteach.bec.gain import cone_generators, intersected_areas, knowledge_gains
+from cfteach.bec.known_slice import reduce_on_known_slice
 from cfteach.bec.rows import RowSet, group_rows, primitive, reduce_and_measure, reduce_sets
 from cfteach.domains import Domain, State, load
 from cfteach.geometry import Region
@@ -45,7 +47,7 @@ __all__ = [
     "counterfactual_constraints", "counterfactual_rows", "demo_set", "group_rows",
     "human_mu", "human_mu_batch", "human_values", "intersected_areas", "knowledge_gains",
     "one_action_constraints", "one_action_rows", "policy_bec", "primitive",
-    "reduce_and_measure", "reduce_sets", "resolve_domain",
+    "reduce_and_measure", "reduce_on_known_slice", "reduce_sets", "resolve_domain",
 ]
 
 
@@ -121,8 +123,22 @@ def counterfactual_constraints(domain: Domain | str, env_index: int,
     return Region(grouped.rows).reduced().astype(np.int64)
 
 
-def policy_bec(domain: Domain | str, *, profile: str = "default") -> np.ndarray:
-    """The domain's policy-level BEC: reduce(union of every demo's first-step rows)."""
-    ds = demo_set(resolve_domain(domain), profile)
-    rows = one_action_rows(ds, first_step_only=True).rows
-    return Region(np.unique(rows, axis=0)).reduced().astype(np.int64)
+def policy_bec(domain: Domain | str, *, profile: str = "default",
+               known: Sequence[str] = ()) -> np.ndarray:
+    """The domain's policy-level BEC: reduce(union of every demo's first-step rows).
+
+    `known` names features whose weight is treated as known (the step cost, in the 2021
+    machine-teaching work's published BECs): redundancy is then decided on that slice of the
+    L1 ball (`known_slice.reduce_on_known_slice`).
+    """
+    dom = resolve_domain(domain)
+    unknown = [k for k in known if k not in dom.feature_names]
+    if unknown:
+        raise ValueError(f"{dom.name}: unknown feature(s) {', '.join(map(repr, unknown))} in "
+                         f"known (features: {', '.join(dom.feature_names)})")
+    ds = demo_set(dom, profile)
+    rows = np.unique(one_action_rows(ds, first_step_only=True).rows, axis=0)
+    if known:
+        idx = [dom.feature_names.index(k) for k in known]
+        return reduce_on_known_slice(primitive(rows), dom.weights_raw, idx)
+    return Region(rows).reduced().astype(np.int64)
