@@ -56,7 +56,8 @@ def _show(cur_json: dict[str, Any], domain: Any) -> None:
         if render is not None:
             inst = domain.instance(demo["env_index"])
             layout = render.layout_from_instance(inst)
-            typer.echo(render.demo_text(layout, demo["states"]), err=True)
+            typer.echo(render.demo_text(layout, demo["states"], actions=demo["actions"],
+                                        action_specs=domain.action_specs), err=True)
 
 
 def register(app: typer.Typer) -> None:
