@@ -16,7 +16,30 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 
 class ExitParticipant(Participant):
-    """Presses each action's declared key, read from the page data, and checks the legend."""
+    """Presses each action's declared key, read from the page data, and checks the legend
+    and, after each demonstration that ends with `exit`, the caption naming it."""
+
+    def _demos(self) -> None:
+        demos = self.state()["step"]["demos"]
+        self.captions: list[str] = []
+        original = self.page.click
+
+        def click(selector: str, **kw) -> None:  # noqa: ANN003
+            k = int(self.page.get_attribute("#board", "data-demo") or 0)
+            original(selector, **kw)
+            if selector == "#play":
+                last = len(demos[k]["states"]) - 1
+                self.page.wait_for_selector(f"#board[data-demo='{k}'][data-frame='{last}']")
+                text = self.page.text_content("#demo-action")
+                want = "Chip: leave the game" if demos[k]["actions"][-1] == "exit" else ""
+                assert text == want
+                self.captions.append(text)
+
+        self.page.click = click
+        try:
+            super()._demos()
+        finally:
+            self.page.click = original
 
     def press(self, moves: list[str]) -> None:
         step = self.state()["step"]
@@ -33,6 +56,7 @@ def test_browser_plays_a_declared_exit_action(browser, tmp_path: Path) -> None: 
     init_study(folder, preview_sources([ExitDomain()], demos=2), demo_step_ms=15,
                completion_code="C0MPL3TE")
     who, out, _ = _run(browser, folder, tmp_path, make=ExitParticipant)
+    assert "Chip: leave the game" in who.captions  # a demonstration ended with exit
     rows = _rows(out / "test_responses.csv")
     assert len(rows) == 6
     assert {(r["domain"], int(r["trial_index"])): r["actions"].split() for r in rows} \

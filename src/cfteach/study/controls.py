@@ -38,7 +38,8 @@ def action_specs_of(domain: Any) -> tuple[Any, ...]:
 
 def controls(specs: Iterable[Any], keys: Sequence[str] | None = None,
              what: str = "domain") -> list[dict]:
-    """`[{"action", "key", "key_label", "label"}]` for the actions in `keys` (default: all),
+    """`[{"action", "key", "key_label", "label", "effect"}]` for the actions in `keys`
+    (default: all),
     in action order. ValueError (one line) for a name the study cannot store, a key the page
     keeps for itself, or two actions on one key."""
     out: list[dict] = []
@@ -58,7 +59,7 @@ def controls(specs: Iterable[Any], keys: Sequence[str] | None = None,
                              f"{spec.key!r}")
         seen[folded] = spec.name
         out.append({"action": spec.name, "key": spec.key, "key_label": key_word(spec.key),
-                    "label": spec.label})
+                    "label": spec.label, "effect": spec.effect})
     return out
 
 

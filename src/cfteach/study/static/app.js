@@ -417,6 +417,15 @@ const pages = {
     const prev = h("button", { id: "prev" }, "Previous");
     const next = h("button", { id: "next", class: "primary" }, "Next");
     const last = h("p", { class: "note", id: "last-note" });
+    // An action the board cannot show by Chip's position (a declared exit or stay) is named
+    // under the board while its frame is on screen.
+    const caption = h("p", { id: "demo-action", role: "status" });
+    const marked = Object.fromEntries((s.info.controls || [])
+      .filter((c) => c.effect === "exit" || c.effect === "stay").map((c) => [c.action, c.label]));
+    const captionAt = (d, f) => {
+      const a = f > 0 ? d.actions[f - 1] : null;
+      caption.textContent = a && marked[a] ? `Chip: ${marked[a]}` : "";
+    };
     const stop = (completed) => {
       if (timer) clearInterval(timer);
       timer = null;
@@ -433,6 +442,7 @@ const pages = {
         label: `demonstration ${k + 1}` }));
       board.dataset.demo = String(k);
       board.dataset.frame = "0";
+      captionAt(d, 0);
       playBtn.textContent = done[k] > 0 ? "Replay" : "Play";
       prev.disabled = k === 0;
       next.disabled = done[k] < 1;
@@ -462,12 +472,14 @@ const pages = {
             { trail, label: `demonstration ${kk + 1}`, banner: "Demonstration complete" }));
           board.dataset.frame = String(d.states.length - 1);
           board.dataset.watched = "true";
+          captionAt(d, d.states.length - 1);
           return;
         }
         trail.push(d.states[f].agent);
         board.replaceChildren(drawGrid(d.layout, d.states[f], { trail,
           label: `demonstration ${k + 1}` }));
         board.dataset.frame = String(f);
+        captionAt(d, f);
       }, s.step_ms);
     });
     prev.addEventListener("click", () => { stop(false); playBtn.disabled = false; k -= 1; show(); });
@@ -483,7 +495,8 @@ const pages = {
       h("p", { text: "Feel free to watch the demonstration as many times as you want (but at " +
         "least once)!" }),
       h("p", { text: `Task: ${s.info.task}` }),
-      title, board, h("div", { class: "controls" }, playBtn, " ", prev, " ", next), last);
+      title, board, caption, h("div", { class: "controls" }, playBtn, " ", prev, " ", next),
+      last);
     show();
   },
 
