@@ -16,9 +16,10 @@ EXIT = ActionSpec("exit", "leave the game", "x", "exit")
 STAY = ActionSpec("stay", "wait a moment", "w", "stay")
 
 
-def domain_with(*extra: ActionSpec, name: str = "delivery_exit") -> Domain:
-    """Delivery plus `extra` actions after the built-in six (a no-op in the engine)."""
-    dom = load("delivery")
+def domain_with(*extra: ActionSpec, name: str = "delivery_exit",
+                base: str = "delivery") -> Domain:
+    """`base` (delivery) plus `extra` actions after its own (a no-op in the engine)."""
+    dom = load(base)
     spec = dataclasses.replace(dom.spec, name=name,
                                actions=(*dom.actions, *(a.name for a in extra)),
                                action_specs=(*dom.action_specs, *extra))
