@@ -17,16 +17,19 @@ def test_docs_have_examples() -> None:
 def test_docs_example_runs(i: int, capsys: pytest.CaptureFixture[str]) -> None:
     exec(compile(BLOCKS[i], f"{DOCS / 'domains.md'}:block{i}", "exec"), {})
     out = capsys.readouterr().out
-    if i == 0:
+    code = BLOCKS[i]
+    if "parse_envs" in code:  # working on some environments
+        assert out.splitlines() == ["[0, 5, 16, 32, 48]", "[0, 16, 32, 48]", "True"]
+    elif "state_to_json" in code:
         assert "191" in out and "'station': True" in out
-    elif i == 1:  # declared actions: exit ends for free at the start, entering the dock
+    elif "act(\"wait\")" in code:  # declared actions: exit ends at the start, the dock
         assert out.splitlines() == [
             "[('wait', 'w', 'stay'), ('quit', 'q', 'exit')]",
             "(1, 1, 1, 1, 0) [0.0, 0.0, 0.0] True",
             "(3, 1, 3, 1, 1) [0.0, 1.0, 1.0] False",
             "[0.0, 0.0, 1.0]",
             "(array([1., 0., 1.]), True)"]
-    elif i == 2:
+    elif "best_tied_trajectories" in code:
         assert "(8, 2, 553, 6) True" in out and "['right', 'right']" in out
     else:  # best_tied_mu on the bounded pairs: skateboard instance 1 goes right twice
         assert "(8, 553, 3) [0 0 2]" in out

@@ -345,3 +345,29 @@ def test_keyboard_play_uses_the_study_keys():
     dom = domains.from_dict(data, source="test-keys-order")
     user = _play_key_codes(cgym.make(dom, "00"))
     assert user == {(k_right,): 0, (ord("p"),): 1, (k_up,): 2, (k_left,): 3}
+
+
+def test_declared_actions_give_the_space_the_meanings_and_the_keys():
+    """A domain declaring a seventh action (`exit` on "x", `stay` on "w") gets a Discrete(8)
+    space, the names in order and its keys in `get_keys_to_action`."""
+    from actions_fixtures import EXIT, STAY, domain_with
+
+    dom = domain_with(EXIT, STAY)
+    env = cgym.make(dom, "000000")
+    assert env.action_space.n == 8
+    assert env.get_action_meanings()[-2:] == ["exit", "stay"]
+    keys = _play_key_codes(env)
+    assert keys[(ord("x"),)] == 6 and keys[(ord("w"),)] == 7
+    assert keys[(ord("p"),)] == PICKUP
+    env.reset()
+    *_, info = env.step(6)
+    assert info["action"] == "exit"
+
+
+def test_a_key_without_a_pygame_code_is_named():
+    from actions_fixtures import domain_with
+    from cfteach.domains import ActionSpec
+
+    env = cgym.make(domain_with(ActionSpec("jump", "jump", "PageUp", "stay")), "000000")
+    with pytest.raises(ValueError, match="key 'PageUp' has no pygame equivalent"):
+        env.get_keys_to_action()

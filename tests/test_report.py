@@ -257,3 +257,27 @@ def test_sphere_labels_stay_clear_of_stubs_star_and_each_other():
         star = bel._fig_xy(fig, ax, np.asarray(w) / np.linalg.norm(w))
         b = boxes["w*"]
         assert not (b.x0 < star[0] < b.x1 and b.y0 < star[1] < b.y1)
+
+
+def test_demo_gif_marks_a_declared_exit_action(tmp_path):
+    """A demonstration ending with a declared `exit` (skateboard + exit, given to the report
+    as its domain file) shows the exit marker on the GIF's last frame only."""
+    from actions_fixtures import EXIT, domain_with
+
+    results = make_results()
+    for cur in results["skateboard"]["curricula"].values():
+        d = cur["demos"][0]
+        d["actions"] = [*d["actions"], "exit"]
+        d["states"] = [*d["states"], d["states"][-1]]
+    dom = domain_with(EXIT, name="skateboard", base="skateboard")
+    build_report(tmp_path, results, sphere_resolution=12, progress=False,
+                 meta={"domain_files": {"skateboard": dom}})
+    exit_rgb = [int(st.EXIT_COLOR[i : i + 2], 16) for i in (1, 3, 5)]
+    with Image.open(tmp_path / "skateboard/img/proposed-demo1.gif") as im:
+        assert im.n_frames == 4
+        seen = []
+        for k in range(4):
+            im.seek(k)
+            rgb = np.asarray(im.convert("RGB")).astype(int)
+            seen.append(bool((np.abs(rgb - exit_rgb).max(axis=2) <= 8).any()))
+    assert seen == [False, False, False, True]

@@ -61,17 +61,28 @@ def resolve_domain(domain: Domain | str) -> Domain:
 
 
 def _demo_index(ds: DemoSet, env_index: int, start_state: State | dict[str, Any]) -> int:
-    if not 0 <= int(env_index) < ds.batch.E:
-        raise ValueError(f"{ds.domain.name}: env_index must lie in 0..{ds.batch.E - 1}, "
-                         f"got {env_index}")
-    inst = ds.batch.instances[int(env_index)]
+    # env_index is the instance's own index; on a domain restricted to some environments
+    # (cfteach.domains.subset) it differs from the instance's position in the batch.
+    position = {inst.index: e for e, inst in enumerate(ds.batch.instances)}
+    if int(env_index) not in position:
+        raise ValueError(f"{ds.domain.name}: env_index must be one of the domain's "
+                         f"environments ({_ranges(sorted(position))}), got {env_index}")
+    e = position[int(env_index)]
+    inst = ds.batch.instances[e]
     state = inst.state_from_json(start_state) if isinstance(start_state, dict) \
         else tuple(start_state)
     try:
-        return ds.index(int(env_index), state)
+        return ds.index(e, state)
     except KeyError:
         raise ValueError(f"{ds.domain.name}: {start_state} is not a reachable non-terminal "
                          f"state of instance {env_index}") from None
+
+
+def _ranges(xs: list[int]) -> str:
+    """`0..63` for a full range, else the first few indices."""
+    if xs == list(range(len(xs))):
+        return f"0..{len(xs) - 1}"
+    return ", ".join(map(str, xs[:8])) + (", ..." if len(xs) > 8 else "")
 
 
 def one_action_constraints(domain: Domain | str, env_index: int,

@@ -74,14 +74,22 @@ def check_positive(value: int | None, option: str) -> None:
         fail(f"{option} must be at least 1, got {value}")
 
 
+#: The help of every command's ``--envs`` option.
+ENVS_HELP = ("Work on these environments only: comma-separated indices (5), env codes of "
+             "the domain's bit count (000101) and slices start:stop:step (0::16 = every "
+             "16th). The JSON keeps each one's original index and code.")
+
+
 def load_domain(name: str, *, force: bool = False, sphere: bool = False,
-                planning: bool = True) -> Any:
+                planning: bool = True, envs: str | None = None) -> Any:
     """Load a domain (name, file or random spec) and run every check before any work.
 
     `sphere`: the command draws 3-D belief pictures, which need exactly 3 features.
     `force`: go on when the size estimate exceeds the free memory.
     `planning`: also run the planning checks (unreachable goals, reward loops), which
     compile the domain (as teaching would anyway).
+    `envs`: restrict the domain to these environments (``--envs``, checked before any
+    work; the size estimate and the planning checks then cover only those).
     """
     from cfteach import domains
     from cfteach.domains.check import errors_of, require_sound, static_findings
@@ -94,6 +102,13 @@ def load_domain(name: str, *, force: bool = False, sphere: bool = False,
     errors = errors_of(static_findings(dom))
     if errors:
         fail(errors[0].message)
+    if envs is not None:
+        from cfteach.domains.selection import subset
+
+        try:
+            dom = subset(dom, envs)
+        except ValueError as exc:
+            fail(f"--envs: {exc}")
     if sphere and dom.n_features != 3:
         fail(f"{dom.name}: {dom.n_features} features; the report's belief pictures are "
              "spheres and need exactly 3 (use --no-report for the JSON only, or "

@@ -61,7 +61,10 @@ def demos(
         [], "--curriculum", help="Curriculum JSON (cfteach teach / reproduce output); "
         "repeat for several. Without it: every candidate demonstration."),
     instances: str = typer.Option("", help="Candidates only: comma-separated instance "
-                                  "indices to keep (default all)."),
+                                  "indices to keep (default all; see also --envs)."),
+    envs: str | None = typer.Option(None, "--envs", help="Candidates only: plan and export "
+                                    "these environments only (indices, env codes, slices "
+                                    "such as 0::16; docs/domains.md)."),
     dataset_id: str = typer.Option("", help="Dataset id (default cfteach/DOMAIN/curricula-v0 "
                                    "or cfteach/DOMAIN/candidates-v0)."),
     root: Path | None = typer.Option(None, help=_ROOT_HELP),
@@ -72,6 +75,18 @@ def demos(
     from cfteach.ecosystem import candidate_episodes, curriculum_episodes
 
     dom = _load_domain(domain)
+    if envs is not None:
+        if curriculum:
+            _fail("--envs selects candidate demonstrations; a curriculum already names its "
+                  "environments (drop --envs or --curriculum)")
+        if instances.strip():
+            _fail("give --envs or --instances, not both")
+        from cfteach.domains.selection import subset
+
+        try:
+            dom = subset(dom, envs)
+        except ValueError as e:
+            _fail(f"--envs: {e}")
     try:
         if curriculum:
             episodes = []

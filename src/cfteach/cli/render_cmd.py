@@ -150,7 +150,8 @@ def demos_cmd(
         layout = render.layout_from_instance(inst)
         path = out / f"{name}.{fmt}"
         try:
-            render.save_demo(layout, demo["states"], path, still=still)
+            render.save_demo(layout, demo["states"], path, still=still,
+                             actions=demo.get("actions", ()), action_specs=dom.action_specs)
         except ValueError as exc:
             _fail(f"{file}: {name}: {exc}")
     typer.echo(f"Wrote {len(items)} pictures to {out}")

@@ -13,7 +13,14 @@ from typing import Annotated, Any
 
 import typer
 
-from cfteach.cli._common import check_out_file, check_positive, did_you_mean, fail, load_domain
+from cfteach.cli._common import (
+    ENVS_HELP,
+    check_out_file,
+    check_positive,
+    did_you_mean,
+    fail,
+    load_domain,
+)
 
 _PROFILE_HELP = "reference: the authors' deterministic choices; default: ours (docs/profiles.md)."
 _UNBOUNDED_HELP = ("Human models with unbounded values: skip (give nothing, the reference and "
@@ -43,6 +50,11 @@ def _check_choice(value: str, choices: tuple[str, ...], option: str) -> None:
              + did_you_mean(value, choices))
 
 
+def _envs_of(dom: Any, envs: str | None) -> list[int] | None:
+    """The chosen environments' indices for the JSON's settings (None without --envs)."""
+    return None if envs is None else list(dom.env_indices)
+
+
 def _show(cur_json: dict[str, Any], domain: Any) -> None:
     """Each demonstration as text, with the renderer if it is available."""
     try:
@@ -56,7 +68,8 @@ def _show(cur_json: dict[str, Any], domain: Any) -> None:
         if render is not None:
             inst = domain.instance(demo["env_index"])
             layout = render.layout_from_instance(inst)
-            typer.echo(render.demo_text(layout, demo["states"]), err=True)
+            typer.echo(render.demo_text(layout, demo["states"], actions=demo["actions"],
+                                        action_specs=domain.action_specs), err=True)
 
 
 def register(app: typer.Typer) -> None:
@@ -86,6 +99,7 @@ def register(app: typer.Typer) -> None:
         show: Annotated[bool, typer.Option(
             help="Also draw each demonstration as text (on stderr).")] = False,
         force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
+        envs: Annotated[str | None, typer.Option("--envs", help=ENVS_HELP)] = None,
     ) -> None:
         """Choose the demonstrations one study condition shows; print the curriculum JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -109,12 +123,12 @@ def register(app: typer.Typer) -> None:
         if proportion is not None and not 0 < proportion <= 1:
             fail(f"--proportion must lie in (0, 1], got {proportion}")
         check_out_file(out)
-        dom = load_domain(domain, force=force)
+        dom = load_domain(domain, force=force, envs=envs)
         try:
             cur = teach(dom, condition, profile=profile, seed=seed,
                         human_models=human_models, max_demos=max_demos,
                         proportion=proportion, unbounded_models=unbounded_models,
-                        progress=sys.stderr.isatty())
+                        progress=sys.stderr.isatty(), envs=_envs_of(dom, envs))
         except (ValueError, TypeError) as exc:
             fail(str(exc))
         data = cur.to_json()
@@ -141,6 +155,7 @@ def register(app: typer.Typer) -> None:
         out: Annotated[Path | None, typer.Option("--out", "-o",
                                                  help="Write the JSON here.")] = None,
         force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
+        envs: Annotated[str | None, typer.Option("--envs", help=ENVS_HELP)] = None,
     ) -> None:
         """Pick low / medium / high difficulty tests (Algorithm 2); print the tests JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -164,13 +179,13 @@ def register(app: typer.Typer) -> None:
             except json.JSONDecodeError as exc:
                 fail(f"--training {path}: not JSON ({exc.msg} at line {exc.lineno}); "
                      "expected a curriculum written by `cfteach teach`")
-        dom = load_domain(domain, force=force)
+        dom = load_domain(domain, force=force, envs=envs)
         try:
             ts = select_tests(dom, training=curricula, profile=profile, seed=seed,
                               per_level=per_level, human_models=human_models,
                               include_candidates=all_candidates,
                               unbounded_models=unbounded_models,
-                              progress=sys.stderr.isatty())
+                              progress=sys.stderr.isatty(), envs=_envs_of(dom, envs))
         except (ValueError, TypeError, KeyError) as exc:
             fail(str(exc))
         data = ts.to_json()

@@ -102,5 +102,6 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Domain:
 
 # Imported last: the generator builds its domains through `from_dict` above.
 from cfteach.domains.random import random_gridworld, random_gridworld_dict  # noqa: E402
+from cfteach.domains.selection import parse_envs, subset  # noqa: E402
 
-__all__ += ["random_gridworld", "random_gridworld_dict"]
+__all__ += ["parse_envs", "random_gridworld", "random_gridworld_dict", "subset"]

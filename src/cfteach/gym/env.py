@@ -27,6 +27,29 @@ OBSERVATION_TYPES = ("index", "state")
 #: `gymnasium.utils.play.play(env, wait_on_player=True)` plays like the study's test games.
 STUDY_KEYS = {"up": 0x40000052, "down": 0x40000051, "left": 0x40000050, "right": 0x4000004F,
               "pickup": "p", "dropoff": "d"}
+#: `KeyboardEvent.key` names (what an `ActionSpec.key` holds) without a printable face, as
+#: SDL2/pygame key codes; a one-character key stays that character.
+SDL_KEYS = {"ArrowUp": 0x40000052, "ArrowDown": 0x40000051, "ArrowLeft": 0x40000050,
+            "ArrowRight": 0x4000004F, "Enter": 13, "Escape": 27, "Backspace": 8, "Tab": 9,
+            " ": " "}
+
+
+def sdl_key(key: str) -> int | str:
+    """An `ActionSpec.key` as `gymnasium.utils.play` takes it (ValueError if it has none)."""
+    if key in SDL_KEYS:
+        return SDL_KEYS[key]
+    if len(key) == 1:
+        return key.lower()
+    raise ValueError(f"key {key!r} has no pygame equivalent (use a single character, "
+                     f"or one of {', '.join(sorted(k for k in SDL_KEYS if k != ' '))})")
+
+
+def _action_specs(domain: Any) -> tuple[Any, ...]:
+    """The domain's ActionSpecs in action order (the built-ins' for objects without them)."""
+    from cfteach.domains.spec import BUILTIN_ACTIONS
+
+    return tuple(getattr(domain, "action_specs", None)
+                 or (BUILTIN_ACTIONS[a] for a in domain.actions))
 
 
 def _resolve_domain(domain: Any) -> Any:
@@ -168,9 +191,10 @@ class GridEnv(gymnasium.Env):
         return list(self.action_meanings)
 
     def get_keys_to_action(self) -> dict[tuple[Any, ...], int]:
-        """Keys for `gymnasium.utils.play.play`: the study's arrows, `p` and `d`, each bound
-        to its action's index (user domains may list fewer actions or another order)."""
-        return {(STUDY_KEYS[name],): i for i, name in enumerate(self.action_meanings)}
+        """Keys for `gymnasium.utils.play.play`: each action's declared key (`ActionSpec.key`;
+        the built-ins: arrows, `p`, `d`) bound to its index in the domain's action order."""
+        return {(sdl_key(spec.key),): i
+                for i, spec in enumerate(_action_specs(self.domain))}
 
     @property
     def P(self) -> dict[int, dict[int, list[tuple[float, int, float, bool]]]]:  # noqa: N802

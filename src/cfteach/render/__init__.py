@@ -21,9 +21,11 @@ from typing import Any
 
 from cfteach.render.raster import save_gif, save_png, to_image, to_rgb_array
 from cfteach.render.scene import (
+    ActionMark,
     Layout,
     Scene,
     SceneObject,
+    action_mark,
     layout_from_instance,
     scene_from_state_json,
     trail_of,
@@ -32,9 +34,11 @@ from cfteach.render.svg import to_svg
 from cfteach.render.text import legend, to_text
 
 __all__ = [
+    "ActionMark",
     "Layout",
     "Scene",
     "SceneObject",
+    "action_mark",
     "demo_frames",
     "demo_text",
     "layout_from_instance",
@@ -97,13 +101,26 @@ def _write(scene: Scene, path: Path, cell_px: int) -> Path:
     return path
 
 
-def demo_frames(layout: Layout, states: Sequence[Mapping[str, Any]]) -> list[Scene]:
-    """One scene per state of a demonstration, each with the trail walked so far."""
+def demo_frames(
+    layout: Layout,
+    states: Sequence[Mapping[str, Any]],
+    actions: Sequence[str] = (),
+    action_specs: Sequence[Any] = (),
+) -> list[Scene]:
+    """One scene per state of a demonstration, each with the trail walked so far. With the
+    demonstration's `actions` (and the domain's `action_specs`; built-ins by default), a
+    frame reached by an `exit` or `stay` action carries that action's marker and label."""
     if not states:
         raise ValueError("a demonstration needs at least one state")
+    if actions and len(actions) != len(states) - 1:
+        raise ValueError(f"a demonstration with {len(states)} states has {len(states) - 1} "
+                         f"actions, got {len(actions)}")
     frames = []
     for k, s in enumerate(states):
-        frames.append(scene_from_state_json(layout, s, trail_of(states[: k + 1]), done=False))
+        scene = scene_from_state_json(layout, s, trail_of(states[: k + 1]), done=False)
+        if k and actions:
+            scene = replace(scene, mark=action_mark(actions[k - 1], action_specs))
+        frames.append(scene)
     return frames
 
 
@@ -115,12 +132,15 @@ def save_demo(
     cell_px: int | None = None,
     frame_ms: int = 450,
     still: str = "last",
+    actions: Sequence[str] = (),
+    action_specs: Sequence[Any] = (),
 ) -> Path:
     """A demonstration as an animated `.gif`, or one still with the whole trail as
     `.png`/`.svg`/`.txt`: `still="last"` shows where it ends, `still="first"` shows the start
-    (objects where they begin, as a test looks to a player) with the path to come."""
+    (objects where they begin, as a test looks to a player) with the path to come.
+    `actions`/`action_specs`: mark `exit` and `stay` actions (see `demo_frames`)."""
     path = Path(path)
-    frames = demo_frames(layout, states)
+    frames = demo_frames(layout, states, actions, action_specs)
     if path.suffix.lower() == ".gif":
         return save_gif(frames, path, cell_px or 32, frame_ms=frame_ms)
     if still not in ("first", "last"):
@@ -129,7 +149,19 @@ def save_demo(
     return _write(scene, path, cell_px or 48)
 
 
-def demo_text(layout: Layout, states: Sequence[Mapping[str, Any]], *, color: bool = False) -> str:
-    """A demonstration in text: its last frame with the whole trail, then the legend."""
-    frames = demo_frames(layout, states)
-    return to_text(frames[-1], color=color) + "\n" + legend(layout)
+def demo_text(
+    layout: Layout,
+    states: Sequence[Mapping[str, Any]],
+    *,
+    color: bool = False,
+    actions: Sequence[str] = (),
+    action_specs: Sequence[Any] = (),
+) -> str:
+    """A demonstration in text: its last frame with the whole trail, then the legend, then
+    one line per `exit` / `stay` action taken (with `actions`), naming it and its cell."""
+    frames = demo_frames(layout, states, actions, action_specs)
+    lines = [to_text(frames[-1], color=color), legend(layout)]
+    for k, f in enumerate(frames):
+        if f.mark is not None:
+            lines.append(f"step {k}: {f.mark.label} ({f.mark.name}) at {list(f.agent)}")
+    return "\n".join(lines)

@@ -10,10 +10,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, ImageDraw
+from PIL import Image, ImageDraw, ImageFont
 
 from cfteach.render.scene import Scene
-from cfteach.render.shapes import Circle, Line, Polygon, Rect, scene_shapes
+from cfteach.render.shapes import Circle, Line, Polygon, Rect, Text, scene_shapes
 
 
 def to_image(scene: Scene, cell_px: int = 48) -> Image.Image:
@@ -33,6 +33,9 @@ def to_image(scene: Scene, cell_px: int = 48) -> Image.Image:
             draw.polygon(list(s.points), fill=s.fill)
         elif isinstance(s, Line):
             draw.line(list(s.points), fill=s.stroke, width=max(1, round(s.width)), joint="curve")
+        elif isinstance(s, Text):
+            font = ImageFont.load_default(size=s.size)
+            draw.text((s.x, s.y), s.text, fill=s.fill, font=font)
     return img
 
 

@@ -65,6 +65,20 @@ class SceneObject:
     carried: bool = False
 
 
+#: Effects of actions that a picture cannot show by the agent's position (the agent stays
+#: where it is), so a frame reached by one of them carries a marker and the action's label.
+MARKED_EFFECTS = ("exit", "stay")
+
+
+@dataclass(frozen=True)
+class ActionMark:
+    """The action that led to a frame, when the picture alone would not show it."""
+
+    name: str
+    label: str
+    effect: str  # one of MARKED_EFFECTS
+
+
 @dataclass(frozen=True)
 class Scene:
     """A layout plus one state: what a single frame shows."""
@@ -74,10 +88,23 @@ class Scene:
     objects: tuple[SceneObject, ...] = ()
     trail: tuple[Cell, ...] = field(default=())
     done: bool = False
+    mark: ActionMark | None = None
 
     @property
     def carrying(self) -> bool:
         return any(o.carried for o in self.objects)
+
+
+def action_mark(name: str, action_specs: Iterable[Any] = ()) -> ActionMark | None:
+    """The marker for action `name` given the domain's `ActionSpec`s (built-ins by default);
+    None for actions the picture shows by itself (moves, pick-up, drop)."""
+    from cfteach.domains.spec import BUILTIN_ACTIONS
+
+    specs = {s.name: s for s in action_specs} or BUILTIN_ACTIONS
+    spec = specs.get(name)
+    if spec is None or spec.effect not in MARKED_EFFECTS:
+        return None
+    return ActionMark(spec.name, spec.label, spec.effect)
 
 
 def scene_from_state_json(

@@ -57,7 +57,18 @@ class Line:
     cell: Cell | None = None
 
 
-Shape = Rect | Circle | Polygon | Line
+@dataclass(frozen=True)
+class Text:
+    x: float  # top-left corner of the text's box
+    y: float
+    text: str
+    fill: str
+    size: float
+    role: str
+    cell: Cell | None = None
+
+
+Shape = Rect | Circle | Polygon | Line | Text
 
 
 @dataclass(frozen=True)
@@ -191,4 +202,25 @@ def scene_shapes(scene: Scene, cell_px: int = 48) -> tuple[Canvas, list[Shape]]:
         cv.at(scene.agent, 0.82, 0.82),
     )
     shapes.append(Polygon(tri, st.AGENT_COLOR, "agent", scene.agent))
+    if scene.mark is not None:
+        shapes.extend(_mark_shapes(cv, scene))
     return cv, shapes
+
+
+def _mark_shapes(cv: Canvas, scene: Scene) -> list[Shape]:
+    """An `exit` (a square frame round the agent: it left the grid there) or a `stay` (a
+    ring: it waited), plus the action's label in the cell's top-left corner."""
+    assert scene.mark is not None
+    c = cv.cell_px
+    cell, mark = scene.agent, scene.mark
+    role = f"action:{mark.name}"
+    color = st.EXIT_COLOR if mark.effect == "exit" else st.STAY_COLOR
+    width = max(2.0, 0.08 * c)
+    if mark.effect == "exit":
+        x0, y0 = cv.at(cell, 0.06, 0.06)
+        shape: Shape = Rect(x0, y0, 0.88 * c, 0.88 * c, None, role, cell, color, width)
+    else:
+        cx, cy = cv.at(cell, 0.5, 0.5)
+        shape = Circle(cx, cy, 0.42 * c, None, role, cell, color, width)
+    x, y = cv.at(cell, 0.08, 0.02)
+    return [shape, Text(x, y, mark.label, color, max(8.0, 0.22 * c), "action-label", cell)]

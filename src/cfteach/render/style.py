@@ -16,6 +16,8 @@ ObjectShape = Literal["circle", "rect", "hexagon", "diamond"]
 
 AGENT_COLOR = "#628dbe"
 TRAIL_COLOR = "#677387"
+EXIT_COLOR = "#c0392b"  # the frame of an `exit` action
+STAY_COLOR = "#8e44ad"  # the ring of a `stay` action
 GRID_COLOR = "#000000"
 BACKGROUND = "#ffffff"
 WALL_COLOR = "#2E3131"

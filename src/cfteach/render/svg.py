@@ -6,10 +6,10 @@ Every element carries `data-role` and, where it belongs to a grid cell, `data-ce
 
 from __future__ import annotations
 
-from xml.sax.saxutils import quoteattr
+from xml.sax.saxutils import escape, quoteattr
 
 from cfteach.render.scene import Layout, Scene, SceneObject
-from cfteach.render.shapes import Circle, Polygon, Rect, Shape, scene_shapes
+from cfteach.render.shapes import Circle, Polygon, Rect, Shape, Text, scene_shapes
 
 
 def _num(v: float) -> str:
@@ -43,6 +43,12 @@ def _element(shape: Shape) -> str:
             f'<circle cx="{_num(shape.cx)}" cy="{_num(shape.cy)}" r="{_num(shape.r)}" '
             f'fill="{fill}"{stroke}{_attrs(shape)}/>'
         )
+    if isinstance(shape, Text):
+        return (
+            f'<text x="{_num(shape.x)}" y="{_num(shape.y + shape.size)}" '
+            f'font-size="{_num(shape.size)}" font-family="sans-serif" '
+            f'fill="{shape.fill}"{_attrs(shape)}>{escape(shape.text)}</text>'
+        )
     if isinstance(shape, Polygon):
         pts = " ".join(f"{_num(x)},{_num(y)}" for x, y in shape.points)
         return f'<polygon points="{pts}" fill="{shape.fill or "none"}"{_attrs(shape)}/>'
@@ -63,8 +69,6 @@ def to_svg(scene: Scene, cell_px: int = 48, *, title: str | None = None) -> str:
     )
     body = [head]
     if title:
-        from xml.sax.saxutils import escape
-
         body.append(f"<title>{escape(title)}</title>")
     body.extend(_element(s) for s in shapes)
     body.append("</svg>")

@@ -57,6 +57,19 @@ def _as_domain_results(name: str, value: Any) -> DomainResults:
     return res
 
 
+def action_specs_of(name: str, sources: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
+    """The domain's `ActionSpec`s (for marking `exit` / `stay` in the GIFs): from `sources`
+    (a loaded `Domain` or its file) or a built-in name; () when it cannot be loaded."""
+    from cfteach import domains
+
+    src = (sources or {}).get(name, name)
+    try:
+        dom = src if hasattr(src, "action_specs") else domains.load(src)
+    except (ValueError, OSError):
+        return ()
+    return tuple(dom.action_specs)
+
+
 def default_layouts(
     sources: Mapping[str, Any] | None = None,
 ) -> LayoutFn:
@@ -238,13 +251,15 @@ def build_report(
         names = list(first.get("feature_names", []))
         labels = feature_labels(name, names, meta.get("domain_files"))
         label_of = dict(zip(names, labels, strict=True))
+        specs = action_specs_of(name, meta.get("domain_files"))
         columns = []
         for cond in conds:
             cur = res.curricula[cond]
             demos_view = []
             for k, demo in enumerate(cur["demos"], start=1):
                 file = f"{cond}-demo{k}.gif"
-                save_demo(layout_of(name, demo), demo["states"], img / file, cell_px=gif_cell_px)
+                save_demo(layout_of(name, demo), demo["states"], img / file, cell_px=gif_cell_px,
+                          actions=demo.get("actions", ()), action_specs=specs)
                 bar.update()
                 demos_view.append(
                     {

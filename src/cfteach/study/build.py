@@ -17,6 +17,7 @@ from typing import Any
 
 from cfteach.mdp.scoring import is_optimal
 
+from .controls import action_specs_of, controls
 from .games import best_path, build_game, optimal_value, public_game, replay
 from .layout import instance_layout
 from .practice import (
@@ -26,7 +27,7 @@ from .practice import (
     PRACTICE_WEIGHTS,
     CargoGrid,
 )
-from .texts import domain_text
+from .texts import DOMAIN_TEXT, domain_text
 
 CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
 #: The live closed-loop condition: the server's `ClosedLoopTeacher` picks every item.
@@ -88,9 +89,13 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
         actions = tuple(src.domain.actions)
         instances = src.domain.instances()
         text = domain_text(name, tuple(src.domain.feature_names))
-        info[name] = {**text, "feature_names": list(src.domain.feature_names),
+        # The built-in study domains keep the paper's key lists; any other domain plays
+        # every action it declares, on the keys its ActionSpecs name.
+        keys = list(text["keys"]) if name in DOMAIN_TEXT else list(actions)
+        info[name] = {**text, "keys": keys, "feature_names": list(src.domain.feature_names),
                       "weights": [float(x) for x in src.domain.weights],
-                      "action_names": list(actions)}
+                      "action_names": list(actions),
+                      "controls": controls(action_specs_of(src.domain), keys, name)}
         curricula[name] = {}
         for cond in open_loop:
             cur = src.curricula[cond]
@@ -363,19 +368,21 @@ def _demo_from(dom: Any, inst: Any, start: Any) -> dict:
             "feature_counts": mu, "reward": reward, "constraints": []}
 
 
-def preview_sources(names: Iterable[str] = ("delivery", "tiles", "skateboard"), *,
+def preview_sources(names: Iterable[Any] = ("delivery", "tiles", "skateboard"), *,
                     demos: int = 3, seed: int = 0) -> list[DomainSource]:
     """Placeholder curricula and tests on real domains (NOT the paper's: optimal
     demonstrations from random instances, tests with arbitrary difficulty labels), for
-    previewing and load-testing the platform before `cfteach reproduce` has run."""
+    previewing and load-testing the platform before `cfteach reproduce` has run.
+    `names` holds domain names or paths, or domain objects."""
     import random
 
     from cfteach.domains import load
 
     rng = random.Random(seed)
     out = []
-    for name in names:
-        dom = load(name)
+    for given in names:
+        dom = load(given) if isinstance(given, str | Path) else given
+        name = dom.name
         insts = dom.instances()
         rich = sorted(insts, key=lambda i: -i.complexity)[: max(1, len(insts) // 2)]
         picks = [rng.choice(rich) for _ in range(demos)]

@@ -29,7 +29,10 @@ def build_game(instance: Any, start_state: Any, actions: tuple[str, ...]) -> dic
     terminal states, which are absorbing), `terminal[s]` and `phi[s][a]` (feature vector).
     """
     key = instance.state_to_json
-    index: dict[Any, int] = {start_state: 0}
+    # Nodes are (state, terminal): an action that ends the episode without changing the
+    # state tuple (e.g. a declared `exit`) reaches a terminal node of its own, never marking
+    # the state it left as terminal.
+    index: dict[Any, int] = {(start_state, False): 0}
     order = [start_state]
     terminal = [False]
     nxt: list[list[int] | None] = []
@@ -44,16 +47,15 @@ def build_game(instance: Any, start_state: Any, actions: tuple[str, ...]) -> dic
         succ, feats = [], []
         for a in range(len(actions)):
             s2, f, term = instance.step(s, a)
-            if s2 not in index:
+            node = (s2, bool(term))
+            if node not in index:
                 if len(order) >= MAX_GAME_STATES:
                     raise ValueError(f"game has more than {MAX_GAME_STATES} reachable states")
-                index[s2] = len(order)
+                index[node] = len(order)
                 order.append(s2)
                 terminal.append(bool(term))
-                queue.append(index[s2])
-            elif term and not terminal[index[s2]]:
-                terminal[index[s2]] = True
-            succ.append(index[s2])
+                queue.append(index[node])
+            succ.append(index[node])
             feats.append([float(x) for x in np.asarray(f).ravel()])
         rows[i] = (succ, feats)
     for i in range(len(order)):

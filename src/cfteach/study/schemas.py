@@ -17,6 +17,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from .controls import ACTION_NAME_PATTERN
 from .texts import EDUCATION, GENDERS
 
 # Control characters make no sense in an id or a typed answer, and PostgreSQL cannot store
@@ -74,7 +75,9 @@ Path100 = Annotated[str, StringConstraints(max_length=100), AfterValidator(_sing
                     _LINE_SCHEMA]
 Code64 = Annotated[str, StringConstraints(max_length=64), AfterValidator(_single_line),
                    _LINE_SCHEMA]
-Action = Literal["up", "down", "left", "right", "pickup", "dropoff"]
+# Any action name a domain may declare (the server replays moves in the game's own table and
+# refuses names it does not have with 422 bad_moves).
+Action = Annotated[str, StringConstraints(pattern=ACTION_NAME_PATTERN, max_length=40)]
 
 
 def _integral(value: object) -> object:

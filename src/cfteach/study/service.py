@@ -16,11 +16,13 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session as DBSession
 from sqlalchemy.orm import sessionmaker
 
+from cfteach.domains.spec import BUILTIN_ACTIONS
 from cfteach.mdp.scoring import is_optimal
 
 from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .build import browser_game
+from .controls import PRACTICE_CONTROLS, controls
 from .games import ScoringError, public_game, replay
 from .layout import instance_layout
 from .live import LiveTeaching, path_states, responses_of
@@ -175,7 +177,7 @@ class StudyService:
             step.update(layout=p["layout"], game=p["game"],  # not secret: energy shown
                         weights=p["weights"], start_energy=p["start_energy"],
                         target_energy=p["target_energy"], attempts_used=row.practice_attempts,
-                        attempts_allowed=s["practice_attempts"])
+                        attempts_allowed=s["practice_attempts"], controls=PRACTICE_CONTROLS)
         elif kind == "domain_intro":
             step["info"] = _public_info(s["domain_info"][step["domain"]])
             # A few configurations of this game: the demonstrations' layouts, unplayed.
@@ -576,7 +578,10 @@ def _proves(row: Session, token: str | None, session_id: str | None) -> bool:
 
 
 def _public_info(info: dict) -> dict:
-    return {k: info[k] for k in ("title", "task", "actions", "note", "keys", "effects_word")}
+    out = {k: info[k] for k in ("title", "task", "actions", "note", "keys", "effects_word")}
+    # Study files written before per-domain controls play the built-in actions' keys.
+    out["controls"] = info.get("controls") or controls(BUILTIN_ACTIONS.values(), info["keys"])
+    return out
 
 
 #: The no-consent code of study files written before `--no-consent-code` existed.

@@ -38,6 +38,15 @@ def _check_int(name: str, value: Any, lo: int) -> int:
     return int(value)
 
 
+def _restrict(dom: Domain, envs: Any) -> Any:
+    """`dom` restricted to `envs` (None: all of them, unchanged)."""
+    if envs is None:
+        return dom
+    from cfteach.domains.selection import subset
+
+    return subset(dom, envs)
+
+
 class _Ticker:
     """A tqdm bar on stderr (only when asked and stderr is a terminal)."""
 
@@ -61,12 +70,14 @@ class _Ticker:
 def teach(domain: Domain | str, condition: str, *, profile: str = "default", seed: int = 0,
           human_models: int = 8, max_demos: int | None = None,
           proportion: float | None = None, unbounded_models: str | None = None,
-          progress: bool = False) -> Curriculum:
+          progress: bool = False, envs: Any = None) -> Curriculum:
     """The curriculum one condition shows (see the module docstring).
 
     `unbounded_models`: what a human model with unbounded values in an instance contributes
     there: ``"skip"`` nothing (the reference), ``"loops"`` the constraints that its positive
     loops are not rewarding (default profile); docs/profiles.md.
+    `envs`: teach on these environments only (`cfteach.domains.subset`: a ``--envs``
+    string, or indices / env codes); the JSON still names each one's original index and code.
     """
     check_condition(condition)
     check_profile(profile)
@@ -74,13 +85,15 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
                            else unbounded_models)
     _check_int("seed", seed, 0)
     _check_int("human_models", human_models, 1)
-    dom = resolve_domain(domain)
+    dom = _restrict(resolve_domain(domain), envs)
     ds = demo_set(dom, profile)
     k = ds.domain.max_demos if max_demos is None else _check_int("max_demos", max_demos, 1)
     p = default_proportion(profile, condition, dom.name) if proportion is None \
         else check_proportion(proportion)
     settings: dict[str, Any] = {"human_models": human_models, "max_demos": k, "proportion": p,
                                 "unbounded_models": rule}
+    if envs is not None:
+        settings["envs"] = list(dom.env_indices)
     tick = _Ticker(progress, k, f"{dom.name} {condition}")
     try:
         if condition in ("counterfactual_only", "proposed"):
@@ -106,8 +119,10 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
 def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
                  profile: str = "default", seed: int = 0, per_level: int = 6,
                  human_models: int = 8, include_candidates: bool = False,
-                 unbounded_models: str | None = None, progress: bool = False) -> TestSet:
-    """Tests of low / medium / high difficulty (Algorithm 2), excluding training demos."""
+                 unbounded_models: str | None = None, progress: bool = False,
+                 envs: Any = None) -> TestSet:
+    """Tests of low / medium / high difficulty (Algorithm 2), excluding training demos.
+    `envs`: choose among these environments only (as for `teach`)."""
     from cfteach.teaching.testsel import select
 
     check_profile(profile)
@@ -116,7 +131,7 @@ def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
     _check_int("seed", seed, 0)
     _check_int("per_level", per_level, 0)
     _check_int("human_models", human_models, 1)
-    dom = resolve_domain(domain)
+    dom = _restrict(resolve_domain(domain), envs)
     ds = demo_set(dom, profile)
     tick = _Ticker(progress, 1, f"{dom.name} tests")
     try:
@@ -128,5 +143,7 @@ def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
     settings = {"human_models": human_models, "per_level": per_level,
                 "n_clusters": len(parts["cluster_centres"]),
                 "all_optimal_actions_cap": 50, "unbounded_models": rule}
+    if envs is not None:
+        settings["envs"] = list(dom.env_indices)
     return TestSet(domain=dom, profile=profile, seed=seed, settings=settings,
                    include_candidates=include_candidates, demo_set=ds, **parts)

@@ -76,9 +76,10 @@ class Curriculum:
         return [r.demo for r in self.records]
 
     def keys(self) -> list[tuple[int, tuple[int, ...]]]:
-        """(env_index, start state) of every demonstration."""
+        """(env_index, start state) of every demonstration (the instance's own index, also
+        on a domain restricted to some environments)."""
         ds = self.demo_set
-        return [(int(ds.env[r.demo]), ds.start_state(r.demo)) for r in self.records]
+        return [(int(ds.instance(r.demo).index), ds.start_state(r.demo)) for r in self.records]
 
     def to_json(self) -> dict[str, Any]:
         ds = self.demo_set
@@ -158,7 +159,7 @@ class TestSet:
             "belief": {"constraints": _ints(self.belief.reduced()),
                        "area": float(self.belief.area())},
             "human_models": [[float(x) for x in w] for w in self.human_models],
-            "excluded": [[e, ds.batch.instances[e].state_to_json(s)] for e, s in self.excluded],
+            "excluded": [[e, ds.domain.instance(e).state_to_json(s)] for e, s in self.excluded],
             "cluster_centres": [float(c) for c in self.cluster_centres],
             "tests": tests,
         }

@@ -116,9 +116,12 @@ def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
     overlaps, joint = overlaps_of(ds, belief, W, unbounded)
     excluded = training_keys(ds, training)
     pool_mask = np.ones(ds.D, dtype=bool)
+    position = {inst.index: p for p, inst in enumerate(ds.batch.instances)}  # env_index -> e
     for e, s in excluded:
+        if e not in position:  # an environment left out of a subset
+            continue
         try:
-            pool_mask[ds.index(e, s)] = False
+            pool_mask[ds.index(position[e], s)] = False
         except KeyError:
             continue
     pool = np.flatnonzero(pool_mask)

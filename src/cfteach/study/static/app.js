@@ -5,13 +5,11 @@ import { drawGrid } from "./grid.js";
 import { flushPending, getToken, onTrouble, post, report, request, setToken } from "./net.js";
 
 const app = document.getElementById("app");
-const KEYMAP = { ArrowUp: "up", ArrowDown: "down", ArrowLeft: "left", ArrowRight: "right",
-  p: "pickup", d: "dropoff", P: "pickup", D: "dropoff" };
-const KEY_LABELS = { up: "up arrow", down: "down arrow", left: "left arrow",
-  right: "right arrow", pickup: "p", dropoff: "d" };
-const ACTION_TEXT = { up: "move up", down: "move down", left: "move left",
-  right: "move right", pickup: "pick up", dropoff: "drop" };
-const GAME_KEYS = new Set([...Object.keys(KEYMAP), "r", "R"]);
+// Keys and their actions come from the server, per game (`controls`: the domain's declared
+// actions, or the practice game's six built-in ones), as {action, key, key_label, label}.
+// A one-letter key works in either case; `r` resets a game.
+const RESET_KEYS = ["r", "R"];
+let gameKeys = new Set();
 const TEXT_INPUTS = new Set(["text", "number", "email", "search", "tel", "url", "password"]);
 setToken(sessionStorage.getItem("cfteach-token"));
 let keyHandler = null;
@@ -30,7 +28,7 @@ function typesText(t) {
 window.addEventListener("keydown", (e) => {
   if (typesText(e.target)) return;
   const plain = !e.ctrlKey && !e.metaKey && !e.altKey;  // Ctrl+R still reloads
-  if (keyHandler && plain && GAME_KEYS.has(e.key)) {
+  if (keyHandler && plain && gameKeys.has(e.key)) {
     e.preventDefault();
     if (!e.repeat) keyHandler(e);
     return;
@@ -110,20 +108,35 @@ function continueButton(label, onclick, extra = {}) {
   return h("button", { class: "primary", onclick, ...extra }, label);
 }
 
-function keyLegend(keys) {
+function keyLegend(controls) {
   return h("table", { class: "keys" }, h("tr", {}, h("th", { text: "Key" }),
     h("th", { text: "Action" })),
-  keys.map((k) => h("tr", {}, h("td", { text: KEY_LABELS[k] }), h("td", { text: ACTION_TEXT[k] }))),
+  controls.map((c) => h("tr", { "data-action": c.action }, h("td", { text: c.key_label }),
+    h("td", { text: c.label }))),
   h("tr", {}, h("td", { text: "r" }), h("td", { text: "reset simulation" })));
+}
+
+// KeyboardEvent.key -> action name, for the controls of one game.
+function keyMap(controls) {
+  const map = {};
+  for (const c of controls) {
+    map[c.key] = c.action;
+    if (c.key.length === 1) {
+      map[c.key.toLowerCase()] = c.action;
+      map[c.key.toUpperCase()] = c.action;
+    }
+  }
+  return map;
 }
 
 // ---------------------------------------------------------------------------------------
 // A playable game from the server's transition table.
 class Game {
-  constructor(host, layout, game, { keys, energy = null, onMove = null, onEnd = null,
+  constructor(host, layout, game, { controls, energy = null, onMove = null, onEnd = null,
     resetAfterEnd = false, label = "game" }) {
-    Object.assign(this, { host, layout, game, keys, energy, onMove, onEnd, resetAfterEnd,
+    Object.assign(this, { host, layout, game, controls, energy, onMove, onEnd, resetAfterEnd,
       label });
+    this.keymap = keyMap(controls);
     this.host.classList.add("board");
     this.host.setAttribute("tabindex", "0");
     this.reset(false);
@@ -147,10 +160,11 @@ class Game {
       if (!this.ended || this.resetAfterEnd) this.reset();
       return;
     }
-    const action = KEYMAP[e.key];
-    if (!action || this.ended || !this.keys.includes(action)) return;
+    const action = this.keymap[e.key];
+    if (!action || this.ended) return;
     if (this.energy && this.value <= 0) return;
     const a = this.game.actions.indexOf(action);
+    if (a < 0) return;
     const nxt = this.game.next[this.s][a];
     if (nxt === this.s) return; // blocked move or no-op: ignored and not recorded
     if (this.energy) {
@@ -178,6 +192,7 @@ class Game {
 
 function activate(game) {
   keyHandler = (e) => game.press(e);
+  gameKeys = new Set([...Object.keys(game.keymap), ...RESET_KEYS]);
   game.host.addEventListener("click", () => game.host.focus());
   game.host.focus({ preventScroll: true });
 }
@@ -260,13 +275,12 @@ const pages = {
         "while minimizing your energy loss." }),
       h("p", { text: "A subset of the following keys will be available to control Chip in " +
         "each game:" }),
-      h("div", { class: "play" }, board, keyLegend(["up", "down", "left", "right", "pickup",
-        "dropoff"])),
+      h("div", { class: "play" }, board, keyLegend(s.controls)),
       h("p", { text: "If you accidentally take a wrong action, you may reset the simulation " +
         "and start over. Feel free to play around with the controls. You can click the " +
         "continue button whenever you feel ready to move on." }),
       continueButton("Continue", () => advance(st.step_index, "continue"), { id: "next" }));
-    activate(new Game(board, s.layout, s.game, { keys: s.game.actions, resetAfterEnd: true,
+    activate(new Game(board, s.layout, s.game, { controls: s.controls, resetAfterEnd: true,
       label: "practice game" }));
   },
 
@@ -278,7 +292,7 @@ const pages = {
     let used = s.attempts_used;
     const left = () => s.attempts_allowed - used;
     const game = new Game(board, s.layout, s.game, {
-      keys: s.game.actions, energy: { start: s.start_energy, weights: s.weights },
+      controls: s.controls, energy: { start: s.start_energy, weights: s.weights },
       label: "practice game",
       onMove: (g) => {
         if (!g.moves.length) msg.textContent = "";  // a new attempt: the last verdict goes
@@ -347,8 +361,7 @@ const pages = {
         `maximum possible energy remaining. You should end with ${s.target_energy}% energy ` +
         "left (you won't be able to move if energy falls to 0%). You will have " +
         `${s.attempts_allowed} chances to get it right to continue on with the study!` }),
-      h("div", { class: "play" }, board, keyLegend(["up", "down", "left", "right", "pickup",
-        "dropoff"])),
+      h("div", { class: "play" }, board, keyLegend(s.controls)),
       info, msg);
     game.onMove(game);
     activate(game);
@@ -404,6 +417,15 @@ const pages = {
     const prev = h("button", { id: "prev" }, "Previous");
     const next = h("button", { id: "next", class: "primary" }, "Next");
     const last = h("p", { class: "note", id: "last-note" });
+    // An action the board cannot show by Chip's position (a declared exit or stay) is named
+    // under the board while its frame is on screen.
+    const caption = h("p", { id: "demo-action", role: "status" });
+    const marked = Object.fromEntries((s.info.controls || [])
+      .filter((c) => c.effect === "exit" || c.effect === "stay").map((c) => [c.action, c.label]));
+    const captionAt = (d, f) => {
+      const a = f > 0 ? d.actions[f - 1] : null;
+      caption.textContent = a && marked[a] ? `Chip: ${marked[a]}` : "";
+    };
     const stop = (completed) => {
       if (timer) clearInterval(timer);
       timer = null;
@@ -420,6 +442,7 @@ const pages = {
         label: `demonstration ${k + 1}` }));
       board.dataset.demo = String(k);
       board.dataset.frame = "0";
+      captionAt(d, 0);
       playBtn.textContent = done[k] > 0 ? "Replay" : "Play";
       prev.disabled = k === 0;
       next.disabled = done[k] < 1;
@@ -449,12 +472,14 @@ const pages = {
             { trail, label: `demonstration ${kk + 1}`, banner: "Demonstration complete" }));
           board.dataset.frame = String(d.states.length - 1);
           board.dataset.watched = "true";
+          captionAt(d, d.states.length - 1);
           return;
         }
         trail.push(d.states[f].agent);
         board.replaceChildren(drawGrid(d.layout, d.states[f], { trail,
           label: `demonstration ${k + 1}` }));
         board.dataset.frame = String(f);
+        captionAt(d, f);
       }, s.step_ms);
     });
     prev.addEventListener("click", () => { stop(false); playBtn.disabled = false; k -= 1; show(); });
@@ -470,7 +495,8 @@ const pages = {
       h("p", { text: "Feel free to watch the demonstration as many times as you want (but at " +
         "least once)!" }),
       h("p", { text: `Task: ${s.info.task}` }),
-      title, board, h("div", { class: "controls" }, playBtn, " ", prev, " ", next), last);
+      title, board, caption, h("div", { class: "controls" }, playBtn, " ", prev, " ", next),
+      last);
     show();
   },
 
@@ -547,14 +573,14 @@ const pages = {
         submit.disabled = true;
         done({ actions: game.moves, time_ms: Math.round(performance.now() - t0) });
       }, { id: "next", disabled: true });
-      const game = new Game(board, it.layout, it.game, { keys: s.info.keys, label: "test game",
+      const game = new Game(board, it.layout, it.game, { controls: s.info.controls, label: "test game",
         onEnd: () => { submit.disabled = false; },
         onMove: (g) => { submit.disabled = !g.ended; } });
       app.replaceChildren(h("h1", { text: "Your turn" }), head,
         h("p", { text: "Show how you would complete this game's task while minimizing " +
           "Chip's energy loss. You may reset at any time before the game ends." }),
         h("p", { text: `Task: ${s.info.task}` }),
-        h("div", { class: "play" }, board, keyLegend(s.info.keys)), submit);
+        h("div", { class: "play" }, board, keyLegend(s.info.controls)), submit);
       activate(game);
     } else {  // feedback: the participant's answer beside the best one, animated together
       const mine = h("div", { id: "answer-board", class: "board" });
@@ -613,7 +639,7 @@ const pages = {
       disabled: true });
     form.appendChild(submit);
     const t0 = performance.now() - (s.elapsed_ms || 0);  // shown before a reload: keep counting
-    const game = new Game(board, s.layout, s.game, { keys: s.info.keys, label: "test game",
+    const game = new Game(board, s.layout, s.game, { controls: s.info.controls, label: "test game",
       onEnd: () => update() });
     const update = () => {
       const chosen = new FormData(form).get("confidence");
@@ -636,7 +662,7 @@ const pages = {
         "complete this game's task while minimizing Chip's energy loss. You may reset at any " +
         "time before the game ends if you think you've made a mistake." }),
       h("p", { text: `Task: ${s.info.task}` }),
-      h("div", { class: "play" }, board, keyLegend(s.info.keys)),
+      h("div", { class: "play" }, board, keyLegend(s.info.controls)),
       h("p", { text: "Please answer the question below on the confidence of your gameplay " +
         "after providing your demonstration. For fun: We will let you know how well you did " +
         "at the end of all the games." }),
