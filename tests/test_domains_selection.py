@@ -174,3 +174,14 @@ def test_export_minari_demos_with_envs(tmp_path: Path) -> None:
                       "--root", str(root))
     assert code == 2 and text.strip() == ("Error: --envs: skateboard: environment index 9 is "
                                           "out of range 0..7")
+
+
+def test_size_estimate_counts_the_chosen_environments_only() -> None:
+    """`--envs` is checked before any work, and the size estimate then covers the chosen
+    environments: their count, and their demonstrations summed state by state."""
+    from cfteach.domains.size import estimate_size
+
+    sub = subset(DELIVERY, "3,21,42,60")
+    est = estimate_size(sub)
+    assert est.instances == 4 and est.exact
+    assert est.demonstrations == sum(len(DELIVERY.instance(i).states()) for i in (3, 21, 42, 60))

@@ -127,9 +127,10 @@ class Domain:
     def prefetch_states(self, indices: list[int] | None = None, chunk: int = 1024) -> None:
         """Search the reachable states of many instances at once (one vectorised search per
         `chunk` instances) and keep them where `Instance.states()` finds them: much faster
-        than one instance at a time."""
-        insts = [self._instances[i] for i in (range(len(self._instances)) if indices is None
-                                               else indices)]
+        than one instance at a time. `indices`: instance indices (default: all of this
+        domain's instances)."""
+        insts = (list(self._instances) if indices is None
+                 else [self.instance(int(i)) for i in indices])  # original indices
         insts = [i for i in insts if "_states" not in i.__dict__]
         for lo in range(0, len(insts), chunk):
             part = insts[lo:lo + chunk]

@@ -95,20 +95,21 @@ def _state_bound(dom: Domain) -> int:
 
 def estimate_size(dom: Domain, sample: int = SAMPLE_INSTANCES, seed: int = 0) -> SizeEstimate:
     """Instances, states and demonstrations of `dom`, and the predicted cost of `teach`."""
-    n_inst = 2 ** dom.n_bits
+    insts = dom.instances()  # a `--envs` subset counts only its own environments
+    n_inst = len(insts)
     bound = _state_bound(dom)
     if bound > ENUMERATE_LIMIT:
         per = [bound]
         exact = False
     else:
         if n_inst <= sample or n_inst * bound <= EXACT_LIMIT:
-            idx = list(range(n_inst))
-        else:  # the all-off and all-on instances, and random ones between
+            pos = list(range(n_inst))
+        else:  # the first and last instances, and random ones between
             rng = np.random.default_rng(seed)
-            idx = sorted({0, n_inst - 1, *(int(i) for i in rng.integers(0, n_inst, sample - 2))})
-        dom.prefetch_states(idx)
-        per = [len(dom.instance(i).states()) for i in idx]
-        exact = len(idx) == n_inst
+            pos = sorted({0, n_inst - 1, *(int(i) for i in rng.integers(0, n_inst, sample - 2))})
+        dom.prefetch_states([insts[p].index for p in pos])
+        per = [len(insts[p].states()) for p in pos]
+        exact = len(pos) == n_inst
     s_max = max(per)
     demos = sum(per) if exact else int(round(float(np.mean(per)) * n_inst))
     padded = n_inst * (s_max + 1)
