@@ -15,11 +15,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cfteach.bec.constraints import counterfactual_rows
+from cfteach.bec.constraints import counterfactual_rowset, one_action_rows
 from cfteach.bec.demos import DemoSet
-from cfteach.bec.gain import knowledge_gains
 from cfteach.bec.rows import RowSet, reduce_sets
 from cfteach.geometry import Region
+from cfteach.parallel import Executor
+from cfteach.teaching import distribute
 from cfteach.teaching.common import (
     DemoRecord,
     masking_order,
@@ -95,18 +96,15 @@ def candidate_set(profile: str, gains: np.ndarray, proportion: float,
     return _candidates_default(gains, proportion)
 
 
-def blocked(joint: RowSet, demos: np.ndarray, feature: int) -> np.ndarray:
+def blocked(joint: RowSet, demos: np.ndarray, feature: int,
+            executor: Executor | None = None) -> np.ndarray:
     """bool per demo in `demos`: some *reduced* joint constraint involves `feature`."""
     out = np.zeros(len(demos), dtype=bool)
     touch = np.zeros(joint.n_demos, dtype=bool)
     touch[joint.demo[joint.rows[:, feature] != 0]] = True
-    need = demos[touch[demos]]
-    if not len(need):
-        return out
-    red = reduce_sets(joint, need)
-    pos = {int(d): i for i, d in enumerate(demos.tolist())}
-    for d, rows in red.items():
-        out[pos[d]] = bool(len(rows) and np.any(rows[:, feature] != 0))
+    need = touch[demos]
+    if need.any():
+        out[need] = distribute.touches(joint, demos[need], feature, executor)
     return out
 
 
@@ -120,12 +118,19 @@ def counterfactual_curriculum(
     seed: int,
     unbounded: str | None = None,
     tick: Callable[[str], None] | None = None,
+    executor: Executor | None = None,
 ) -> tuple[list[DemoRecord], Region, list[dict]]:
-    """Run Algorithm 1. Returns (chosen demos, final belief, per-round log)."""
+    """Run Algorithm 1. Returns (chosen demos, final belief, per-round log).
+
+    With an `executor` (more than one worker), each round's planning and geometry run on
+    its workers; the curriculum is the same bit for bit (`cfteach.teaching.distribute`).
+    """
     F = ds.F
     names = ds.domain.feature_names
     running = Region(np.asarray(ds.domain.prior, dtype=np.int64), dim=F)
     if feature_scaffolding:
+        if executor is not None and "one_step_sets" not in ds.cache:
+            ds.cache["one_step_sets"] = distribute.reduced_sets(one_action_rows(ds), executor)
         counts = nonzero_counts(list(one_step_sets(ds).values()), F)
         masks: list[int | None] = [*masking_order(counts), None]
     else:
@@ -142,8 +147,8 @@ def counterfactual_curriculum(
         if not len(W):
             log.append({"round": len(chosen), "stop": "no human model inside the belief"})
             break
-        joint, bounded, _ = counterfactual_rows(ds, W, unbounded=unbounded)
-        gains_all = knowledge_gains(running, joint)
+        joint, bounded = counterfactual_rowset(ds, W, unbounded=unbounded, executor=executor)
+        gains_all = distribute.gains(running, joint, executor)
         cands: list[int] = []
         while True:
             mask = masks[mask_i]
@@ -151,7 +156,7 @@ def counterfactual_curriculum(
             if mask is not None:
                 live = np.flatnonzero(gains_all > 1)
                 gains = gains_all.copy()
-                gains[live[blocked(joint, live, mask)]] = 0.0
+                gains[live[blocked(joint, live, mask, executor)]] = 0.0
             cands = candidate_set(ds.profile, gains, proportion, consistent)
             if cands or mask is None:
                 break
