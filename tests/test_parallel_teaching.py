@@ -116,3 +116,18 @@ def test_bad_parallel_settings_are_named() -> None:
     with Executor(backend="local", n_workers=2) as ex, \
             pytest.raises(ValueError, match="either an executor"):
         teach("skateboard", "baseline", executor=ex, workers=2)
+
+
+@pytest.mark.parametrize("first_step_only", [False, True])
+def test_one_action_rows_in_demo_chunks_equal_all_at_once(small4, monkeypatch,
+                                                          first_step_only) -> None:
+    import cfteach.bec.constraints as cons
+    from cfteach.bec.constraints import one_action_rows
+
+    ds = demo_set(small4, "reference")
+    ds.cache.clear()
+    monkeypatch.setattr(cons, "_ONE_ACTION_DEMOS", 10**9)
+    whole = one_action_rows(ds, first_step_only=first_step_only)
+    ds.cache.clear()
+    monkeypatch.setattr(cons, "_ONE_ACTION_DEMOS", 37)
+    assert _same_rowset(one_action_rows(ds, first_step_only=first_step_only), whole)

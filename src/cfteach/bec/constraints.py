@@ -22,15 +22,17 @@ from cfteach.bec.demos import VI_METHOD, DemoSet
 from cfteach.bec.rows import RowSet, group_rows, primitive
 from cfteach.mdp import MDPBatch, value_iteration
 from cfteach.mdp.tied import REFERENCE_TIED_LIMIT, best_tied_mu
+from cfteach.parallel.executor import chunk_slices
 
 _CF_CACHE_SIZE = 8  # counterfactual row sets kept per DemoSet (keyed by the human models)
 
 
-def _steps(ds: DemoSet) -> tuple[np.ndarray, np.ndarray]:
-    """(demo, t) of every step of every demo."""
+def _steps(ds: DemoSet, demos: slice | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(demo, t) of every step of every demo (or of a range of demos)."""
     t = np.arange(ds.actions.shape[1])
-    d_idx, t_idx = np.nonzero(t[None, :] < ds.length[:, None])
-    return d_idx, t_idx
+    sl = demos or slice(0, ds.D)
+    d_idx, t_idx = np.nonzero(t[None, :] < ds.length[sl, None])
+    return d_idx + sl.start, t_idx
 
 
 def one_action_rows(ds: DemoSet, *, first_step_only: bool = False) -> RowSet:
@@ -38,18 +40,26 @@ def one_action_rows(ds: DemoSet, *, first_step_only: bool = False) -> RowSet:
     key = "one_action_t0" if first_step_only else "one_action"
     if key in ds.cache:
         return ds.cache[key]
-    d_idx, t_idx = _steps(ds)
-    if first_step_only:
-        keep = t_idx == 0
-        d_idx, t_idx = d_idx[keep], t_idx[keep]
-    e = ds.env[d_idx]
-    s = ds.states[d_idx, t_idx]
-    rows = ds.suffix_mu[d_idx, t_idx][:, None, :] - ds.dev_mu[e, s]  # [N, A, F]
-    other = np.arange(ds.batch.A)[None, :] != ds.actions[d_idx, t_idx][:, None]
-    demo = np.broadcast_to(d_idx[:, None], other.shape)
-    out = group_rows(rows[other], demo[other], ds.D)
+    # in chunks of demos, so the [steps, A, F] temporaries stay small (rows are grouped
+    # per demo, so joining the chunks' row sets gives the all-at-once answer)
+    parts = []
+    for sl in chunk_slices(ds.D, chunk_size=_ONE_ACTION_DEMOS) or [slice(0, 0)]:
+        d_idx, t_idx = _steps(ds, sl)
+        if first_step_only:
+            keep = t_idx == 0
+            d_idx, t_idx = d_idx[keep], t_idx[keep]
+        e = ds.env[d_idx]
+        s = ds.states[d_idx, t_idx]
+        rows = ds.suffix_mu[d_idx, t_idx][:, None, :] - ds.dev_mu[e, s]  # [N, A, F]
+        other = np.arange(ds.batch.A)[None, :] != ds.actions[d_idx, t_idx][:, None]
+        demo = np.broadcast_to(d_idx[:, None] - sl.start, other.shape)
+        parts.append(group_rows(rows[other], demo[other], sl.stop - sl.start))
+    out = parts[0] if len(parts) == 1 else concat_rowsets(parts, ds.D)
     ds.cache[key] = out
     return out
+
+
+_ONE_ACTION_DEMOS = 8192  # demos per chunk of `one_action_rows`
 
 
 def human_mu(ds: DemoSet, W: np.ndarray, *, method: str | None = None,
