@@ -131,3 +131,15 @@ def test_one_action_rows_in_demo_chunks_equal_all_at_once(small4, monkeypatch,
     ds.cache.clear()
     monkeypatch.setattr(cons, "_ONE_ACTION_DEMOS", 37)
     assert _same_rowset(one_action_rows(ds, first_step_only=first_step_only), whole)
+
+
+def test_demo_set_built_in_chunks_equals_all_at_once(monkeypatch) -> None:
+    import cfteach.bec.demos as demos
+
+    built = []
+    for chunk in (10**9, 50):
+        monkeypatch.setattr(demos, "_BUILD_CHUNK", chunk)
+        built.append(demos._build(random_gridworld(6, 6, 4, 16, 0), "default"))
+    for key in ("step_phi", "suffix_mu", "states", "actions", "length", "dev_mu"):
+        a, b = getattr(built[0], key), getattr(built[1], key)
+        assert a.dtype == b.dtype and np.array_equal(a, b), key
