@@ -44,6 +44,7 @@ class _PeakRSS:
 
         self.proc = psutil.Process()
         self.main = self.total = 0
+        self.cpu: dict[int, float] = {}  # user + system seconds of each process seen
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
@@ -53,16 +54,28 @@ class _PeakRSS:
         while not self._stop.is_set():
             try:
                 main = self.proc.memory_info().rss
+                self._cpu(self.proc)
                 kids = 0
                 for c in self.proc.children(recursive=True):
                     try:
                         kids += c.memory_info().rss
+                        self._cpu(c)
                     except psutil.Error:
                         pass
                 self.main, self.total = max(self.main, main), max(self.total, main + kids)
             except psutil.Error:
                 pass
             self._stop.wait(0.1)
+
+    def _cpu(self, p) -> None:
+        t = p.cpu_times()
+        self.cpu[p.pid] = t.user + t.system
+
+    @property
+    def cpu_seconds(self) -> float:
+        """CPU time of this process and its workers (sampled; short-lived ones may be missed)."""
+        self._cpu(self.proc)
+        return sum(self.cpu.values())
 
     def __enter__(self) -> _PeakRSS:
         self._thread.start()
@@ -89,7 +102,8 @@ def one_run(size: str, workers: int, backend: str) -> dict:
     picks = [d["env_index"] for d in data["demos"]], [d["start_state"] for d in data["demos"]]
     digest = hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
     return {"size": size, "instances": n, "workers": workers, "backend": backend,
-            "seconds": round(seconds, 2), "peak_rss_main_mb": round(rss.main / 2**20),
+            "seconds": round(seconds, 2), "cpu_seconds": round(rss.cpu_seconds, 1),
+            "peak_rss_main_mb": round(rss.main / 2**20),
             "peak_rss_total_mb": round(rss.total / 2**20), "picks": picks, "digest": digest,
             "load_avg_1min": round(os.getloadavg()[0], 2)}
 
@@ -160,8 +174,8 @@ def main() -> None:
         profile_run(args.profile, args.top)
         return
     rows = json.loads(args.json.read_text()) if args.json and args.json.exists() else []
-    print(f"{'size':<14}{'backend':<8}{'workers':>8}{'seconds':>10}{'RSS main':>10}"
-          f"{'RSS all':>10}{'load':>6}  picks")
+    print(f"{'size':<14}{'backend':<8}{'workers':>8}{'seconds':>10}{'CPU s':>8}"
+          f"{'RSS main':>10}{'RSS all':>10}{'load':>6}  picks")
     for size in args.sizes.split(","):
         runs = [(int(k), "local") for k in args.workers.split(",")]
         if args.dask:
@@ -172,6 +186,7 @@ def main() -> None:
             base = base or r["digest"]
             same = "same" if r["digest"] == base else "DIFFERENT"
             print(f"{size:<14}{backend:<8}{workers:>8}{r['seconds']:>10.1f}"
+                  f"{r.get('cpu_seconds', float('nan')):>8.1f}"
                   f"{r['peak_rss_main_mb']:>8} MB{r['peak_rss_total_mb']:>7} MB"
                   f"{r['load_avg_1min']:>6}  {same} {r['picks'][0]}", flush=True)
             rows.append(r)
