@@ -143,3 +143,22 @@ def test_demo_set_built_in_chunks_equals_all_at_once(monkeypatch) -> None:
     for key in ("step_phi", "suffix_mu", "states", "actions", "length", "dev_mu"):
         a, b = getattr(built[0], key), getattr(built[1], key)
         assert a.dtype == b.dtype and np.array_equal(a, b), key
+
+
+def test_baselines_on_two_workers_equal_one_process(small4) -> None:
+    from cfteach.bec.constraints import one_action_rows
+    from cfteach.bec.rows import reduce_and_measure
+    from cfteach.teaching.distribute import one_step_cache
+
+    for cond in ("baseline", "feature_only"):
+        _fresh(small4, "default")
+        one = teach(small4, cond).to_json()
+        _fresh(small4, "default")
+        assert teach(small4, cond, workers=2).to_json() == one
+    ds = demo_set(small4, "default")
+    ds.cache.clear()
+    red, areas = reduce_and_measure(one_action_rows(ds))
+    with Executor(backend="local", n_workers=2) as ex:
+        one_step_cache(ds, ex)
+    assert np.array_equal(ds.cache["bec_areas"], areas)
+    assert all(np.array_equal(ds.cache["one_step_sets"][d], red[d]) for d in range(ds.D))

@@ -27,7 +27,7 @@ from cfteach.teaching.common import (
     check_proportion,
     default_proportion,
 )
-from cfteach.teaching.distribute import open_executor, parallel_config
+from cfteach.teaching.distribute import one_step_cache, open_executor, parallel_config
 from cfteach.teaching.records import CURRICULUM_SCHEMA, TESTS_SCHEMA, Curriculum, TestSet
 
 __all__ = ["CONDITIONS", "CURRICULUM_SCHEMA", "PROFILES", "TESTS_SCHEMA", "Curriculum",
@@ -104,6 +104,8 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
 
             for key in ("proportion", "human_models", "unbounded_models"):
                 settings[key] = None  # written in every curriculum, null where unused
+            with open_executor(config, executor) as ex:
+                one_step_cache(ds, ex)  # the one costly, per-demo part
             records, final, log = baseline_curriculum(
                 ds, feature_scaffolding=condition == "feature_only", max_demos=k, seed=seed)
     finally:

@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cfteach.bec.constraints import counterfactual_rowset, one_action_rows
+from cfteach.bec.constraints import counterfactual_rowset
 from cfteach.bec.demos import DemoSet
 from cfteach.bec.rows import RowSet, reduce_sets
 from cfteach.geometry import Region
@@ -172,8 +172,7 @@ def counterfactual_curriculum(
     names = ds.domain.feature_names
     running = Region(np.asarray(ds.domain.prior, dtype=np.int64), dim=F)
     if feature_scaffolding:
-        if executor is not None and "one_step_sets" not in ds.cache:
-            ds.cache["one_step_sets"] = distribute.reduced_sets(one_action_rows(ds), executor)
+        distribute.one_step_cache(ds, executor)
         counts = nonzero_counts(list(one_step_sets(ds).values()), F)
         masks: list[int | None] = [*masking_order(counts), None]
     else:

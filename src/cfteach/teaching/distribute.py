@@ -17,9 +17,10 @@ from functools import partial
 
 import numpy as np
 
-from cfteach.bec.constraints import sub_rowset
+from cfteach.bec.constraints import one_action_rows, sub_rowset
+from cfteach.bec.demos import DemoSet
 from cfteach.bec.gain import intersected_areas, knowledge_gains
-from cfteach.bec.rows import RowSet, reduce_sets
+from cfteach.bec.rows import RowSet, reduce_and_measure, reduce_sets
 from cfteach.geometry import Region
 from cfteach.parallel import Executor, ParallelConfig
 
@@ -90,13 +91,6 @@ def _touches(rowset: RowSet, feature: int) -> np.ndarray:
                      for d in range(rowset.n_demos)], dtype=bool)
 
 
-def _reduced(rowset: RowSet) -> np.ndarray:
-    red = reduce_sets(rowset)
-    out = np.empty(rowset.n_demos, dtype=object)
-    out[:] = [red[d] for d in range(rowset.n_demos)]
-    return out
-
-
 def gains(running: Region, joint: RowSet, executor: Executor | None) -> np.ndarray:
     """`knowledge_gains(running, joint)` for every demo, on the executor's workers."""
     if executor is None:
@@ -127,11 +121,20 @@ def touches(joint: RowSet, demos: np.ndarray, feature: int,
     return _per_set(executor, partial(_touches, feature=feature), joint, demos).astype(bool)
 
 
-def reduced_sets(rowset: RowSet, executor: Executor | None) -> dict[int, np.ndarray]:
-    """`reduce_sets(rowset)` (every demo's irredundant rows), on the workers."""
-    if executor is None:
-        return reduce_sets(rowset)
-    demos = np.arange(rowset.n_demos)
-    red = _per_set(executor, _reduced, rowset, demos)
-    return {int(d): red[i] for i, d in enumerate(demos.tolist())}
+def _reduced_and_area(rowset: RowSet) -> np.ndarray:
+    red, areas = reduce_and_measure(rowset)
+    out = np.empty(rowset.n_demos, dtype=object)
+    out[:] = [(red[d], float(areas[d])) for d in range(rowset.n_demos)]
+    return out
 
+
+def one_step_cache(ds: DemoSet, executor: Executor | None) -> None:
+    """Fill the demo set's one-step sets and BEC areas (what the masking order and the
+    baselines reduce for every demo) on the executor's workers: the same values as
+    `reduce_and_measure(one_action_rows(ds))` in one process."""
+    if executor is None or ("one_step_sets" in ds.cache and "bec_areas" in ds.cache):
+        return
+    rows = one_action_rows(ds)
+    both = _per_set(executor, _reduced_and_area, rows, np.arange(rows.n_demos))
+    ds.cache["one_step_sets"] = {d: both[d][0] for d in range(rows.n_demos)}
+    ds.cache["bec_areas"] = np.array([both[d][1] for d in range(rows.n_demos)], dtype=float)
