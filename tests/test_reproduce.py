@@ -296,3 +296,33 @@ def test_an_unknown_profile_is_named_before_any_work(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"unknown profile 'nope'.*reference.*default"):
         reproduce(tmp_path / "out", ["skateboard"], profile="nope", report=False)
     assert not (tmp_path / "out").exists()
+
+
+def test_domains_taught_side_by_side_give_the_one_process_json(tmp_path: Path) -> None:
+    """Two local workers (one domain each, and a user domain file loaded by path in the
+    worker) write exactly the JSON of one process, k-means centres included."""
+    from cfteach.report.reproduce import reproduce
+
+    path = tmp_path / "keys.toml"
+    path.write_text(USER_TOML, encoding="utf-8")
+    names = ["skateboard", str(path)]
+    one, _ = reproduce(tmp_path / "one", names, report=False, workers=1)
+    two, _ = reproduce(tmp_path / "two", names, report=False, workers=2)
+    assert list(one) == list(two) == ["skateboard", "keys"]
+    for name in one:
+        assert one[name].curricula == two[name].curricula
+        assert one[name].tests == two[name].tests
+        for f in (tmp_path / "one" / name).glob("*.json"):
+            assert f.read_text() == (tmp_path / "two" / name / f.name).read_text(), f
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--workers", "0"], "--workers must be at least 1"),
+    (["--backend", "daks"], "did you mean 'dask'"),
+    (["--scheduler", "tcp://127.0.0.1:1"], "--scheduler needs --backend dask or ray"),
+])
+def test_bad_parallel_options_are_one_line_errors(tmp_path, args, message):
+    result = WideRunner().invoke(app, ["reproduce", "--out", str(tmp_path / "o"), *args])
+    assert result.exit_code == 2
+    assert message in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "o").exists()

@@ -41,3 +41,25 @@ def test_errors_name_the_problem(tmp_path: Path) -> None:
     bad.write_text("{not json")
     res = runner.invoke(app, ["tests", "skateboard", "--training", str(bad)])
     assert res.exit_code == 2 and "bad.json" in res.output
+
+
+def test_two_workers_write_the_one_process_json(tmp_path: Path) -> None:
+    """--workers 2 on teach and tests: the same JSON as one process (4-feature domain)."""
+    dom = "random:6x6:f4:n16:s0"
+    for cmd in (["teach", dom, "--condition", "proposed"], ["tests", dom, "--per-level", "2"]):
+        one = runner.invoke(app, [*cmd, "--out", str(tmp_path / "one.json")])
+        two = runner.invoke(app, [*cmd, "--workers", "2", "--out", str(tmp_path / "two.json")])
+        assert one.exit_code == 0 and two.exit_code == 0, one.output + two.output
+        assert json.loads((tmp_path / "one.json").read_text()) == \
+            json.loads((tmp_path / "two.json").read_text())
+
+
+def test_bad_parallel_options_name_the_problem() -> None:
+    for cmd in ("teach", "tests"):
+        res = runner.invoke(app, [cmd, "skateboard", "--workers", "0"])
+        assert res.exit_code == 2 and "--workers must be at least 1" in res.output
+        res = runner.invoke(app, [cmd, "skateboard", "--backend", "sparc"])
+        assert res.exit_code == 2 and "--backend: unknown value 'sparc'" in res.output
+        res = runner.invoke(app, [cmd, "skateboard", "--scheduler", "tcp://127.0.0.1:1"])
+        assert res.exit_code == 2 and "--scheduler needs --backend dask or ray" in res.output
+        assert "Traceback" not in res.output

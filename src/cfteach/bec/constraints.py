@@ -12,21 +12,27 @@ authors' code picks h* when more than 10 tied trajectories exist (`cfteach.mdp.b
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import partial
+from typing import Any
+
 import numpy as np
 
 from cfteach.bec.demos import VI_METHOD, DemoSet
 from cfteach.bec.rows import RowSet, group_rows, primitive
 from cfteach.mdp import MDPBatch, value_iteration
 from cfteach.mdp.tied import REFERENCE_TIED_LIMIT, best_tied_mu
+from cfteach.parallel.executor import chunk_slices
 
 _CF_CACHE_SIZE = 8  # counterfactual row sets kept per DemoSet (keyed by the human models)
 
 
-def _steps(ds: DemoSet) -> tuple[np.ndarray, np.ndarray]:
-    """(demo, t) of every step of every demo."""
+def _steps(ds: DemoSet, demos: slice | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(demo, t) of every step of every demo (or of a range of demos)."""
     t = np.arange(ds.actions.shape[1])
-    d_idx, t_idx = np.nonzero(t[None, :] < ds.length[:, None])
-    return d_idx, t_idx
+    sl = demos or slice(0, ds.D)
+    d_idx, t_idx = np.nonzero(t[None, :] < ds.length[sl, None])
+    return d_idx + sl.start, t_idx
 
 
 def one_action_rows(ds: DemoSet, *, first_step_only: bool = False) -> RowSet:
@@ -34,18 +40,26 @@ def one_action_rows(ds: DemoSet, *, first_step_only: bool = False) -> RowSet:
     key = "one_action_t0" if first_step_only else "one_action"
     if key in ds.cache:
         return ds.cache[key]
-    d_idx, t_idx = _steps(ds)
-    if first_step_only:
-        keep = t_idx == 0
-        d_idx, t_idx = d_idx[keep], t_idx[keep]
-    e = ds.env[d_idx]
-    s = ds.states[d_idx, t_idx]
-    rows = ds.suffix_mu[d_idx, t_idx][:, None, :] - ds.dev_mu[e, s]  # [N, A, F]
-    other = np.arange(ds.batch.A)[None, :] != ds.actions[d_idx, t_idx][:, None]
-    demo = np.broadcast_to(d_idx[:, None], other.shape)
-    out = group_rows(rows[other], demo[other], ds.D)
+    # in chunks of demos, so the [steps, A, F] temporaries stay small (rows are grouped
+    # per demo, so joining the chunks' row sets gives the all-at-once answer)
+    parts = []
+    for sl in chunk_slices(ds.D, chunk_size=_ONE_ACTION_DEMOS) or [slice(0, 0)]:
+        d_idx, t_idx = _steps(ds, sl)
+        if first_step_only:
+            keep = t_idx == 0
+            d_idx, t_idx = d_idx[keep], t_idx[keep]
+        e = ds.env[d_idx]
+        s = ds.states[d_idx, t_idx]
+        rows = ds.suffix_mu[d_idx, t_idx][:, None, :] - ds.dev_mu[e, s]  # [N, A, F]
+        other = np.arange(ds.batch.A)[None, :] != ds.actions[d_idx, t_idx][:, None]
+        demo = np.broadcast_to(d_idx[:, None] - sl.start, other.shape)
+        parts.append(group_rows(rows[other], demo[other], sl.stop - sl.start))
+    out = parts[0] if len(parts) == 1 else concat_rowsets(parts, ds.D)
     ds.cache[key] = out
     return out
+
+
+_ONE_ACTION_DEMOS = 8192  # demos per chunk of `one_action_rows`
 
 
 def human_mu(ds: DemoSet, W: np.ndarray, *, method: str | None = None,
@@ -180,3 +194,145 @@ def counterfactual_rows(ds: DemoSet, W: np.ndarray, *, method: str | None = None
         memo.pop(next(iter(memo)))
     memo[key] = out
     return out
+
+
+# -- chunked (streamed, optionally distributed) counterfactual rows ------------------------
+
+#: Planning chunk budget: (instance, state, human model) triples per chunk. A chunk's working
+#: memory is about ``steps x M x F x 8`` bytes a few times over (see docs/parallel.md).
+CHUNK_STATE_MODELS = 1 << 16
+
+
+@dataclass(frozen=True, eq=False)
+class PlanChunk:
+    """What one worker needs to compute the counterfactual rows of a contiguous range of
+    instances: their planning arrays and their demos (views, so building one is free)."""
+
+    batch: MDPBatch  # arrays only (no instances/states: they would pickle the domain)
+    w_true: np.ndarray
+    demo0: int  # global index of the chunk's first demo
+    env: np.ndarray  # [n] local instance index of each demo
+    states: np.ndarray  # [n, T+1]
+    length: np.ndarray  # [n]
+    suffix_mu: np.ndarray  # [n, T+1, F]
+
+    @property
+    def n_demos(self) -> int:
+        return int(self.env.shape[0])
+
+
+def plan_chunks(ds: DemoSet, n_models: int, *, min_chunks: int = 1,
+                budget: int = CHUNK_STATE_MODELS) -> list[PlanChunk]:
+    """Contiguous instance ranges of `ds`, each with at most about `budget` (instance, state,
+    model) triples (at least one instance), cut into at least `min_chunks` pieces.
+
+    The rows do not depend on the cut (planning is per instance and model, rows are grouped
+    per demo), so the cut may follow the worker count.
+    """
+    b = ds.batch
+    per_instance = max(1, b.S * n_models)
+    size = max(1, budget // per_instance)
+    n = max(-(-b.E // size), min(min_chunks, b.E))
+    bounds = np.linspace(0, b.E, n + 1).round().astype(np.int64)
+    first = np.searchsorted(ds.env, bounds)  # demos are instance-major
+    out = []
+    for e0, e1, d0, d1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), first[:-1].tolist(),
+                              first[1:].tolist(), strict=True):
+        sub = MDPBatch(next_state=b.next_state[e0:e1], features=b.features[e0:e1],
+                       valid=b.valid[e0:e1], n_states=b.n_states[e0:e1], states=(),
+                       state_index=(), instances=(), actions=b.actions,
+                       feature_names=b.feature_names)
+        out.append(PlanChunk(batch=sub, w_true=ds.weights, demo0=d0, env=ds.env[d0:d1] - e0,
+                             states=ds.states[d0:d1], length=ds.length[d0:d1],
+                             suffix_mu=ds.suffix_mu[d0:d1]))
+    return out
+
+
+def chunk_rows(chunk: PlanChunk, W: np.ndarray, method: str, reference_ties: bool,
+               unbounded: str) -> tuple[RowSet, np.ndarray]:
+    """The grouped counterfactual rows of one chunk's demos (local demo indices) and its
+    ``bounded [e, M]``: `counterfactual_rows` restricted to a range of instances."""
+    mu_h, bounded = human_mu_batch(chunk.batch, chunk.w_true, W, method=method,
+                                   reference_ties=reference_ties)
+    t = np.arange(chunk.states.shape[1] - 1)
+    d_idx, t_idx = np.nonzero(t[None, :] < chunk.length[:, None])
+    e = chunk.env[d_idx]
+    s = chunk.states[d_idx, t_idx]
+    rows = chunk.suffix_mu[d_idx, t_idx][:, None, :] - mu_h[e, :, s]  # [N, M, F]
+    del mu_h
+    ok = bounded[e]
+    flat_rows = [rows[ok]]
+    del rows
+    flat_demo = [np.broadcast_to(d_idx[:, None], ok.shape)[ok]]
+    if unbounded == "loops":
+        ue, um = np.nonzero(~bounded)
+        for e1, lr in zip(ue.tolist(), loop_rows(chunk.batch, W, ue, um), strict=True):
+            if not len(lr):
+                continue
+            demos_e = np.flatnonzero(chunk.env == e1)
+            flat_rows.append(np.tile(lr, (len(demos_e), 1)))
+            flat_demo.append(np.repeat(demos_e, len(lr)))
+    return group_rows(np.vstack(flat_rows), np.concatenate(flat_demo), chunk.n_demos), bounded
+
+
+def concat_rowsets(parts: list[RowSet], n_demos: int) -> RowSet:
+    """Join RowSets of consecutive demo ranges (in order) into one over all `n_demos`."""
+    starts = np.cumsum([0] + [p.n_demos for p in parts])
+    if starts[-1] != n_demos:
+        raise ValueError(f"the parts cover {starts[-1]} demos, not {n_demos}")
+    F = parts[0].F
+    rows = np.vstack([p.rows for p in parts]) if parts else np.zeros((0, F), dtype=np.int64)
+    demo = np.concatenate([p.demo + s for p, s in zip(parts, starts[:-1].tolist(),
+                                                      strict=True)])
+    offsets = np.zeros(n_demos + 1, dtype=np.int64)
+    np.cumsum(np.bincount(demo, minlength=n_demos), out=offsets[1:])
+    return RowSet(rows=rows, demo=demo.astype(np.int64), offsets=offsets)
+
+
+def sub_rowset(rowset: RowSet, demos: np.ndarray) -> RowSet:
+    """The rows of some demos, renumbered ``0..len(demos)-1`` (what a worker is sent)."""
+    demos = np.asarray(demos, dtype=np.int64)
+    lo, hi = rowset.offsets[demos], rowset.offsets[demos + 1]
+    counts = hi - lo
+    offsets = np.zeros(len(demos) + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    idx = np.repeat(lo - offsets[:-1], counts) + np.arange(offsets[-1])
+    return RowSet(rows=rowset.rows[idx], demo=np.repeat(np.arange(len(demos)), counts),
+                  offsets=offsets)
+
+
+def counterfactual_rowset(ds: DemoSet, W: np.ndarray, *, method: str | None = None,
+                          reference_ties: bool | None = None, unbounded: str | None = None,
+                          executor: Any = None, budget: int = CHUNK_STATE_MODELS,
+                          ) -> tuple[RowSet, np.ndarray]:
+    """`counterfactual_rows` without the raw rows, streamed over instance chunks.
+
+    Identical ``(joint RowSet, bounded [E, M])``, but peak memory grows with a chunk
+    (`budget` instance-state-model triples), not with the number of demos. With a
+    `cfteach.parallel.Executor`, the chunks run on its workers.
+    """
+    W = np.atleast_2d(np.asarray(W, dtype=float))
+    method = VI_METHOD[ds.profile] if method is None else method
+    if reference_ties is None:
+        reference_ties = ds.profile == "reference"
+    unbounded = check_unbounded(DEFAULT_UNBOUNDED[ds.profile] if unbounded is None
+                                else unbounded)
+    key = (W.tobytes(), W.shape, method, reference_ties, unbounded)
+    memo = ds.cache.setdefault("counterfactual_rowset", {})
+    if key in memo:
+        return memo[key]
+    workers = 1 if executor is None else executor.n_workers
+    chunks = plan_chunks(ds, len(W), min_chunks=workers, budget=budget)
+    fn = partial(chunk_rows, W=W, method=method, reference_ties=reference_ties,
+                 unbounded=unbounded)
+    parts = [fn(c) for c in chunks] if workers == 1 else executor.map(fn, chunks)
+    out = (concat_rowsets([p[0] for p in parts], ds.D),
+           np.vstack([p[1] for p in parts]))
+    if out[0].rows.nbytes <= _CF_MEMO_BYTES:  # small domains: the conditions share round 1
+        if len(memo) >= _CF_CACHE_SIZE:
+            memo.pop(next(iter(memo)))
+        memo[key] = out
+    return out
+
+
+_CF_MEMO_BYTES = 16 << 20

@@ -116,6 +116,8 @@ class DemoSet:
         return float(self.weights.dot(self.mu[d].astype(float)))
 
 
+_BUILD_CHUNK = 8192  # demos per chunk while building the per-step arrays
+
 _CACHE: weakref.WeakKeyDictionary[Domain, dict[str, DemoSet]] = weakref.WeakKeyDictionary()
 
 
@@ -148,13 +150,17 @@ def _build(domain: Domain, profile: str) -> DemoSet:
     states = ro.states[e_idx, 0, s_idx].astype(np.int64)
     actions = ro.actions[e_idx, 0, s_idx].astype(np.int64)
     length = ro.length[e_idx, 0, s_idx].astype(np.int64)
-    live = actions >= 0
-    a_safe = np.where(live, actions, 0)
-    s_safe = np.where(live, states[:, :T], 0)
-    phi = batch.features[e_idx[:, None], s_safe, a_safe]
-    step_phi = np.where(live[..., None], np.rint(phi), 0).astype(np.int64)
-    suffix = np.zeros((len(e_idx), T + 1, batch.F), dtype=np.int64)
-    suffix[:, :T] = np.cumsum(step_phi[:, ::-1], axis=1)[:, ::-1]
+    n = len(e_idx)
+    step_phi = np.empty((n, T, batch.F), dtype=np.int64)
+    suffix = np.zeros((n, T + 1, batch.F), dtype=np.int64)
+    for a in range(0, n, _BUILD_CHUNK):  # chunks of demos: the float temporaries stay small
+        b = min(n, a + _BUILD_CHUNK)
+        live = actions[a:b] >= 0
+        a_safe = np.where(live, actions[a:b], 0)
+        s_safe = np.where(live, states[a:b, :T], 0)
+        phi = batch.features[e_idx[a:b, None], s_safe, a_safe]
+        step_phi[a:b] = np.where(live[..., None], np.rint(phi), 0).astype(np.int64)
+        suffix[a:b, :T] = np.cumsum(step_phi[a:b, ::-1], axis=1)[:, ::-1]
     demo_of = np.full((batch.E, batch.S), -1, dtype=np.int64)
     demo_of[e_idx, s_idx] = np.arange(len(e_idx))
     dev_mu = np.rint(dev.mu[:, 0]).astype(np.int64)

@@ -42,11 +42,24 @@ def reproduce(
         bool, typer.Option("--force", help="Go on even when a domain's size estimate exceeds "
                                            "the free memory.")
     ] = False,
+    backend: Annotated[
+        str, typer.Option(help="Where the domains are taught: local, dask or ray "
+                               "(docs/parallel.md); the JSON is the same.")
+    ] = "local",
+    workers: Annotated[
+        int | None, typer.Option(help="Domains taught at once (default: every local core; "
+                                      "1 = this process only).")
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Dask scheduler / Ray address (default: start a local "
+                                      "cluster).")
+    ] = None,
 ) -> None:
     """Run every condition and test selection for the domains; write JSON, pictures and a
     self-contained index.html report."""
     from cfteach.bec.demos import PROFILES
     from cfteach.cli._common import check_out_dir, did_you_mean, fail, load_domain
+    from cfteach.cli.teach_cmd import check_parallel
     from cfteach.report import build_report, load_meta, load_results
     from cfteach.report.reproduce import reproduce as run
 
@@ -63,15 +76,19 @@ def reproduce(
              + did_you_mean(profile, PROFILES))
     if seed < 0:
         fail(f"--seed must be 0 or more, got {seed}")
+    check_parallel(backend, workers, scheduler)
     check_out_dir(out)
     for name in split_list(domains) or []:  # every check before hours of work
         load_domain(name, force=force, sphere=not no_report)
     try:
         results, index = run(out, split_list(domains), profile=profile, seed=seed,
-                             report=not no_report)
+                             report=not no_report, backend=backend, workers=workers,
+                             scheduler=scheduler)
     except (ValueError, FileNotFoundError) as exc:
         typer.echo(f"Error: {exc}", err=True)
         raise typer.Exit(2) from exc
+    except (ConnectionError, RuntimeError) as exc:  # cluster unreachable, extra missing
+        fail(f"--backend {backend}: {exc}", code=1)
     for name, res in results.items():
         n = ", ".join(f"{c} {len(cur['demos'])}" for c, cur in res.curricula.items())
         levels = res.tests["tests"] if res.tests else {}

@@ -29,6 +29,20 @@ _UNBOUNDED_HELP = ("Human models with unbounded values: skip (give nothing, the 
 
 
 _FORCE_HELP = "Go on even when the size estimate exceeds the free memory."
+_BACKEND_HELP = ("Where each round's planning and geometry run: local, dask or ray "
+                 "(docs/parallel.md); the result is the same.")
+_WORKERS_HELP = "Worker processes (default: 1 = this process only, no pool; dask/ray: all)."
+_SCHEDULER_HELP = "Dask scheduler / Ray address (default: start a local cluster)."
+
+
+def check_parallel(backend: str, workers: int | None, scheduler: str | None) -> None:
+    """One-line errors for bad --backend/--workers/--scheduler before any work."""
+    from cfteach.parallel import BACKENDS
+
+    _check_choice(backend, BACKENDS, "--backend")
+    check_positive(workers, "--workers")
+    if scheduler is not None and backend == "local":
+        fail("--scheduler needs --backend dask or ray (the local backend has no scheduler)")
 
 
 def _emit(data: dict[str, Any], out: Path | None) -> None:
@@ -100,6 +114,9 @@ def register(app: typer.Typer) -> None:
             help="Also draw each demonstration as text (on stderr).")] = False,
         force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
         envs: Annotated[str | None, typer.Option("--envs", help=ENVS_HELP)] = None,
+        backend: Annotated[str, typer.Option(help=_BACKEND_HELP)] = "local",
+        workers: Annotated[int | None, typer.Option(help=_WORKERS_HELP)] = None,
+        scheduler: Annotated[str | None, typer.Option(help=_SCHEDULER_HELP)] = None,
     ) -> None:
         """Choose the demonstrations one study condition shows; print the curriculum JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -122,15 +139,19 @@ def register(app: typer.Typer) -> None:
             fail(f"--seed must be 0 or more, got {seed}")
         if proportion is not None and not 0 < proportion <= 1:
             fail(f"--proportion must lie in (0, 1], got {proportion}")
+        check_parallel(backend, workers, scheduler)
         check_out_file(out)
         dom = load_domain(domain, force=force, envs=envs)
         try:
             cur = teach(dom, condition, profile=profile, seed=seed,
                         human_models=human_models, max_demos=max_demos,
                         proportion=proportion, unbounded_models=unbounded_models,
-                        progress=sys.stderr.isatty(), envs=_envs_of(dom, envs))
+                        progress=sys.stderr.isatty(), envs=_envs_of(dom, envs),
+                        backend=backend, workers=workers, scheduler=scheduler)
         except (ValueError, TypeError) as exc:
             fail(str(exc))
+        except (ConnectionError, RuntimeError) as exc:  # cluster unreachable, extra missing
+            fail(f"--backend {backend}: {exc}", code=1)
         data = cur.to_json()
         _emit(data, out)
         if show:
@@ -156,6 +177,9 @@ def register(app: typer.Typer) -> None:
                                                  help="Write the JSON here.")] = None,
         force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
         envs: Annotated[str | None, typer.Option("--envs", help=ENVS_HELP)] = None,
+        backend: Annotated[str, typer.Option(help=_BACKEND_HELP)] = "local",
+        workers: Annotated[int | None, typer.Option(help=_WORKERS_HELP)] = None,
+        scheduler: Annotated[str | None, typer.Option(help=_SCHEDULER_HELP)] = None,
     ) -> None:
         """Pick low / medium / high difficulty tests (Algorithm 2); print the tests JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -169,6 +193,7 @@ def register(app: typer.Typer) -> None:
             _check_choice(unbounded_models, tuple(UNBOUNDED_RULES), "--unbounded-models")
         if seed < 0:
             fail(f"--seed must be 0 or more, got {seed}")
+        check_parallel(backend, workers, scheduler)
         check_out_file(out)
         curricula = []
         for path in training or []:
@@ -185,9 +210,12 @@ def register(app: typer.Typer) -> None:
                               per_level=per_level, human_models=human_models,
                               include_candidates=all_candidates,
                               unbounded_models=unbounded_models,
-                              progress=sys.stderr.isatty(), envs=_envs_of(dom, envs))
+                              progress=sys.stderr.isatty(), envs=_envs_of(dom, envs),
+                              backend=backend, workers=workers, scheduler=scheduler)
         except (ValueError, TypeError, KeyError) as exc:
             fail(str(exc))
+        except (ConnectionError, RuntimeError) as exc:  # cluster unreachable, extra missing
+            fail(f"--backend {backend}: {exc}", code=1)
         data = ts.to_json()
         for level, items in data["tests"].items():
             if len(items) < per_level:

@@ -3,10 +3,13 @@ JSON, then every picture and the HTML report (`cfteach reproduce`)."""
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 from cfteach.report.build import (
     CONDITIONS,
@@ -27,16 +30,22 @@ def reproduce(
     conditions: Sequence[str] = CONDITIONS,
     report: bool = True,
     progress: bool | None = None,
+    backend: str = "local",
+    workers: int | None = 1,
+    scheduler: str | None = None,
 ) -> tuple[dict[str, DomainResults], Path | None]:
     """Teach every condition and select tests for each domain; write JSON, pictures, report.
 
     Returns the results and the path of `index.html` (None with `report=False`).
+    `backend`/`workers`/`scheduler` (`cfteach.parallel`): with more than one worker the
+    domains are taught side by side, one domain per task (the same JSON as one process);
+    `workers=None` uses every local core.
     """
     from tqdm.auto import tqdm
 
     from cfteach import domains as dom
-    from cfteach import teaching
     from cfteach.bec.demos import check_profile
+    from cfteach.parallel import Executor, ParallelConfig
 
     names = list(domains) if domains else list(dom.builtin_names())
     check_profile(profile)  # before any work: the teacher's own check of the name
@@ -56,21 +65,23 @@ def reproduce(
         disable=not show,
         file=sys.stderr,
     )
-    for name, domain in loaded.items():
-        res = DomainResults()
-        trained = []
-        for cond in conditions:
-            bar.set_postfix_str(f"{name}: {cond}")
-            cur = teaching.teach(domain, cond, profile=profile, seed=seed)
-            trained.append(cur)
-            res.curricula[cond] = cur.to_json()
-            bar.update()
-        bar.set_postfix_str(f"{name}: tests")
-        tests = teaching.select_tests(domain, training=tuple(trained), profile=profile, seed=seed)
-        res.tests = tests.to_json()
-        bar.update()
-        results[domain.name] = res
-        write_results(out, {domain.name: res})  # keep what is done even if a later one fails
+    config = ParallelConfig(backend=backend, n_workers=workers, scheduler=scheduler)
+    job = partial(_teach_domain, profile=profile, seed=seed, conditions=tuple(conditions),
+                  threads=_native_threads())
+    with Executor(config) as ex:
+        if len(loaded) > 1 and (backend != "local" or ex.n_workers > 1):
+            bar.set_postfix_str(f"{len(loaded)} domains on {ex.n_workers} workers")
+            # built-ins go by name, files by path: each worker loads its own domain
+            for name, res in ex.map(job, list(loaded)):
+                results[name] = res
+                write_results(out, {name: res})
+                bar.update(len(conditions) + 1)
+        else:
+            for domain in loaded.values():
+                res = _teach_domain(domain, profile=profile, seed=seed,
+                                    conditions=tuple(conditions), bar=bar)[1]
+                results[domain.name] = res
+                write_results(out, {domain.name: res})  # keep what is done if a later fails
     bar.close()
     seconds = time.perf_counter() - started
 
@@ -93,3 +104,52 @@ def reproduce(
         layouts = default_layouts({d.name: d for d in loaded.values()})
         index = build_report(out, results, meta=meta, layouts=layouts, progress=show)
     return results, index
+
+
+def _native_threads() -> int:
+    """The OpenMP/BLAS threads this process uses (their default: one per usable core)."""
+    env = os.environ.get("OMP_NUM_THREADS", "")
+    if env.isdigit() and int(env) > 0:
+        return int(env)
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else \
+        (os.cpu_count() or 1)
+
+
+def _teach_domain(domain: Any, *, profile: str, seed: int, conditions: tuple[str, ...],
+                  bar: Any = None, threads: int | None = None) -> tuple[str, DomainResults]:
+    """Every condition's curriculum and the tests of one domain (a name, a path or a
+    `Domain`), as JSON; module-level so a worker process can run it.
+
+    `threads`: run native code with this many threads, the parent's count. Worker pools
+    start their processes with one thread, and k-means' cluster centres (in the tests JSON)
+    differ in the last digits with the number of OpenMP threads.
+    """
+    if threads is not None:
+        import sklearn.cluster  # noqa: F401 - loads the OpenMP runtime the limit must reach
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=threads):
+            return _teach_domain(domain, profile=profile, seed=seed, conditions=conditions,
+                                 bar=bar)
+    from cfteach import domains as dom
+    from cfteach import teaching
+
+    if isinstance(domain, str):
+        domain = dom.load(domain)
+    res = DomainResults()
+    trained = []
+    for cond in conditions:
+        if bar is not None:
+            bar.set_postfix_str(f"{domain.name}: {cond}")
+        cur = teaching.teach(domain, cond, profile=profile, seed=seed)
+        trained.append(cur)
+        res.curricula[cond] = cur.to_json()
+        if bar is not None:
+            bar.update()
+    if bar is not None:
+        bar.set_postfix_str(f"{domain.name}: tests")
+    tests = teaching.select_tests(domain, training=tuple(trained), profile=profile, seed=seed)
+    res.tests = tests.to_json()
+    if bar is not None:
+        bar.update()
+    return domain.name, res

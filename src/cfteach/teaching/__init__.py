@@ -20,12 +20,14 @@ from typing import Any
 from cfteach.bec import DEFAULT_UNBOUNDED, check_unbounded, resolve_domain
 from cfteach.bec.demos import PROFILES, check_profile, demo_set
 from cfteach.domains import Domain
+from cfteach.parallel import Executor
 from cfteach.teaching.common import (
     CONDITIONS,
     check_condition,
     check_proportion,
     default_proportion,
 )
+from cfteach.teaching.distribute import one_step_cache, open_executor, parallel_config
 from cfteach.teaching.records import CURRICULUM_SCHEMA, TESTS_SCHEMA, Curriculum, TestSet
 
 __all__ = ["CONDITIONS", "CURRICULUM_SCHEMA", "PROFILES", "TESTS_SCHEMA", "Curriculum",
@@ -70,7 +72,9 @@ class _Ticker:
 def teach(domain: Domain | str, condition: str, *, profile: str = "default", seed: int = 0,
           human_models: int = 8, max_demos: int | None = None,
           proportion: float | None = None, unbounded_models: str | None = None,
-          progress: bool = False, envs: Any = None) -> Curriculum:
+          progress: bool = False, envs: Any = None, backend: str = "local",
+          workers: int | None = None, scheduler: str | None = None,
+          executor: Executor | None = None) -> Curriculum:
     """The curriculum one condition shows (see the module docstring).
 
     `unbounded_models`: what a human model with unbounded values in an instance contributes
@@ -78,8 +82,13 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
     loops are not rewarding (default profile); docs/profiles.md.
     `envs`: teach on these environments only (`cfteach.domains.subset`: a ``--envs``
     string, or indices / env codes); the JSON still names each one's original index and code.
+
+    `backend`/`workers`/`scheduler` (as in `cfteach.parallel`; `workers` None = 1 process
+    for the local backend) or a live `executor` spread each round's planning and geometry
+    over workers; the curriculum is identical to the one-process run (docs/parallel.md).
     """
     check_condition(condition)
+    config = parallel_config(backend, workers, scheduler, executor)
     check_profile(profile)
     rule = check_unbounded(DEFAULT_UNBOUNDED[profile] if unbounded_models is None
                            else unbounded_models)
@@ -99,14 +108,18 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
         if condition in ("counterfactual_only", "proposed"):
             from cfteach.teaching.counterfactual import counterfactual_curriculum
 
-            records, final, log = counterfactual_curriculum(
-                ds, feature_scaffolding=condition == "proposed", human_models=human_models,
-                max_demos=k, proportion=p, seed=seed, unbounded=rule, tick=tick)
+            with open_executor(config, executor) as ex:
+                records, final, log = counterfactual_curriculum(
+                    ds, feature_scaffolding=condition == "proposed",
+                    human_models=human_models, max_demos=k, proportion=p, seed=seed,
+                    unbounded=rule, tick=tick, executor=ex)
         else:
             from cfteach.teaching.baseline import baseline_curriculum
 
             for key in ("proportion", "human_models", "unbounded_models"):
                 settings[key] = None  # written in every curriculum, null where unused
+            with open_executor(config, executor) as ex:
+                one_step_cache(ds, ex)  # the one costly, per-demo part
             records, final, log = baseline_curriculum(
                 ds, feature_scaffolding=condition == "feature_only", max_demos=k, seed=seed)
     finally:
@@ -120,12 +133,17 @@ def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
                  profile: str = "default", seed: int = 0, per_level: int = 6,
                  human_models: int = 8, include_candidates: bool = False,
                  unbounded_models: str | None = None, progress: bool = False,
-                 envs: Any = None) -> TestSet:
+                 envs: Any = None, backend: str = "local", workers: int | None = None,
+                 scheduler: str | None = None, executor: Executor | None = None) -> TestSet:
     """Tests of low / medium / high difficulty (Algorithm 2), excluding training demos.
-    `envs`: choose among these environments only (as for `teach`)."""
+
+    `envs`: choose among these environments only (as for `teach`).
+    `backend`/`workers`/`scheduler`/`executor`: as in `teach` (identical results).
+    """
     from cfteach.teaching.testsel import select
 
     check_profile(profile)
+    config = parallel_config(backend, workers, scheduler, executor)
     rule = check_unbounded(DEFAULT_UNBOUNDED[profile] if unbounded_models is None
                            else unbounded_models)
     _check_int("seed", seed, 0)
@@ -135,8 +153,9 @@ def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
     ds = demo_set(dom, profile)
     tick = _Ticker(progress, 1, f"{dom.name} tests")
     try:
-        parts = select(ds, training=list(training), seed=seed, per_level=per_level,
-                       human_models=human_models, unbounded=rule)
+        with open_executor(config, executor) as ex:
+            parts = select(ds, training=list(training), seed=seed, per_level=per_level,
+                           human_models=human_models, unbounded=rule, executor=ex)
         tick("overlaps")
     finally:
         tick.close()

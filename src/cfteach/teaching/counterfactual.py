@@ -15,11 +15,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cfteach.bec.constraints import counterfactual_rows
+from cfteach.bec.constraints import counterfactual_rowset
 from cfteach.bec.demos import DemoSet
-from cfteach.bec.gain import knowledge_gains
 from cfteach.bec.rows import RowSet, reduce_sets
 from cfteach.geometry import Region
+from cfteach.parallel import Executor
+from cfteach.teaching import distribute
 from cfteach.teaching.common import (
     DemoRecord,
     masking_order,
@@ -95,19 +96,59 @@ def candidate_set(profile: str, gains: np.ndarray, proportion: float,
     return _candidates_default(gains, proportion)
 
 
-def blocked(joint: RowSet, demos: np.ndarray, feature: int) -> np.ndarray:
+def blocked(joint: RowSet, demos: np.ndarray, feature: int,
+            executor: Executor | None = None) -> np.ndarray:
     """bool per demo in `demos`: some *reduced* joint constraint involves `feature`."""
     out = np.zeros(len(demos), dtype=bool)
     touch = np.zeros(joint.n_demos, dtype=bool)
     touch[joint.demo[joint.rows[:, feature] != 0]] = True
-    need = demos[touch[demos]]
-    if not len(need):
-        return out
-    red = reduce_sets(joint, need)
-    pos = {int(d): i for i, d in enumerate(demos.tolist())}
-    for d, rows in red.items():
-        out[pos[d]] = bool(len(rows) and np.any(rows[:, feature] != 0))
+    need = touch[demos]
+    if need.any():
+        out[need] = distribute.touches(joint, demos[need], feature, executor)
     return out
+
+
+#: Demos whose gain lies this close (relative) below the best unmasked one are checked
+#: against the mask too: 10x the widest tie rule (the reference's isclose, rtol 1e-5).
+_MASK_MARGIN = 1e-4
+_MASK_FIRST = 64  # demos checked first (then 4x as many each time, while all are held back)
+
+
+def masked_gains(joint: RowSet, gains_all: np.ndarray, feature: int, proportion: float,
+                 executor: Executor | None = None) -> np.ndarray:
+    """`gains_all` with the demos held back by the mask on `feature` set to 0, as far as the
+    selection can tell.
+
+    With ``proportion == 1`` only the best gains matter: demos are checked against the mask
+    in descending order of gain until the best unmasked one is found, then down to
+    `_MASK_MARGIN` below it; the lower ones keep their gains but can be neither the maximum
+    nor tied with it under any profile's rule, so the chosen demos and the log are those of
+    checking every demo (which is done for other proportions, whose target depends on the
+    maximum). Checking means reducing a demo's joint constraints, the costly part.
+    """
+    live = np.flatnonzero(gains_all > 1)
+    gains = gains_all.copy()
+    if proportion != 1:
+        gains[live[blocked(joint, live, feature, executor)]] = 0.0
+        return gains
+    order = live[np.argsort(-gains_all[live], kind="stable")]
+    done, step, top = 0, _MASK_FIRST, None
+    while done < len(order):
+        if top is None:
+            stop = min(len(order), done + step)
+            step *= 4
+        else:
+            floor = top - _MASK_MARGIN * max(1.0, abs(top))
+            stop = done + int(np.count_nonzero(gains_all[order[done:]] >= floor))
+            if stop == done:
+                break
+        block = order[done:stop]
+        held = blocked(joint, block, feature, executor)
+        gains[block[held]] = 0.0
+        if top is None and not held.all():
+            top = float(gains_all[block[~held]].max())
+        done = stop
+    return gains
 
 
 def counterfactual_curriculum(
@@ -120,12 +161,18 @@ def counterfactual_curriculum(
     seed: int,
     unbounded: str | None = None,
     tick: Callable[[str], None] | None = None,
+    executor: Executor | None = None,
 ) -> tuple[list[DemoRecord], Region, list[dict]]:
-    """Run Algorithm 1. Returns (chosen demos, final belief, per-round log)."""
+    """Run Algorithm 1. Returns (chosen demos, final belief, per-round log).
+
+    With an `executor` (more than one worker), each round's planning and geometry run on
+    its workers; the curriculum is the same bit for bit (`cfteach.teaching.distribute`).
+    """
     F = ds.F
     names = ds.domain.feature_names
     running = Region(np.asarray(ds.domain.prior, dtype=np.int64), dim=F)
     if feature_scaffolding:
+        distribute.one_step_cache(ds, executor)
         counts = nonzero_counts(list(one_step_sets(ds).values()), F)
         masks: list[int | None] = [*masking_order(counts), None]
     else:
@@ -142,16 +189,14 @@ def counterfactual_curriculum(
         if not len(W):
             log.append({"round": len(chosen), "stop": "no human model inside the belief"})
             break
-        joint, bounded, _ = counterfactual_rows(ds, W, unbounded=unbounded)
-        gains_all = knowledge_gains(running, joint)
+        joint, bounded = counterfactual_rowset(ds, W, unbounded=unbounded, executor=executor)
+        gains_all = distribute.gains(running, joint, executor)
         cands: list[int] = []
         while True:
             mask = masks[mask_i]
             gains = gains_all
             if mask is not None:
-                live = np.flatnonzero(gains_all > 1)
-                gains = gains_all.copy()
-                gains[live[blocked(joint, live, mask)]] = 0.0
+                gains = masked_gains(joint, gains_all, mask, proportion, executor)
             cands = candidate_set(ds.profile, gains, proportion, consistent)
             if cands or mask is None:
                 break

@@ -14,13 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from cfteach.bec.constraints import counterfactual_rows, one_action_rows
+from cfteach.bec.constraints import counterfactual_rowset, one_action_rows
 from cfteach.bec.demos import DemoSet
-from cfteach.bec.gain import intersected_areas
 from cfteach.bec.rows import reduce_sets
 from cfteach.geometry import Region
 from cfteach.mdp.rollout import MAX_STEPS
 from cfteach.mdp.vi import tied_actions
+from cfteach.parallel import Executor
+from cfteach.teaching import distribute
 from cfteach.teaching.records import TestRecord
 from cfteach.teaching.sampling import sample_models
 
@@ -93,19 +94,21 @@ def all_optimal_actions(ds: DemoSet, d: int, cap: int = ALL_OPTIMAL_CAP) -> list
 
 
 def overlaps_of(ds: DemoSet, belief: Region, W: np.ndarray,
-                unbounded: str | None = None) -> tuple[np.ndarray, Any]:
-    """area(B & BEC'(xi)) for every demo, and the joint BEC' row sets."""
+                unbounded: str | None = None, executor: Executor | None = None,
+                ) -> tuple[np.ndarray, Any]:
+    """area(B & BEC'(xi)) for every demo, and the joint BEC' row sets (on the executor's
+    workers if one is given: the same numbers)."""
     if len(W):
-        cf, _, _ = counterfactual_rows(ds, W, unbounded=unbounded)
+        cf, _ = counterfactual_rowset(ds, W, unbounded=unbounded, executor=executor)
         joint = one_action_rows(ds).union(cf)
     else:
         joint = one_action_rows(ds)
-    areas, _ = intersected_areas(belief, joint)
-    return areas, joint
+    return distribute.areas(belief, joint, executor), joint
 
 
 def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
-           human_models: int, unbounded: str | None = None) -> dict[str, Any]:
+           human_models: int, unbounded: str | None = None,
+           executor: Executor | None = None) -> dict[str, Any]:
     """Run Algorithm 2; returns the pieces a `TestSet` is made of."""
     from sklearn.cluster import KMeans
 
@@ -113,7 +116,7 @@ def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
     belief = Region(np.asarray(ds.domain.posterior, dtype=np.int64), dim=F)
     W = sample_models(ds.profile, belief.reduced(), human_models,
                       np.random.default_rng([seed, 3]), F)
-    overlaps, joint = overlaps_of(ds, belief, W, unbounded)
+    overlaps, joint = overlaps_of(ds, belief, W, unbounded, executor)
     excluded = training_keys(ds, training)
     pool_mask = np.ones(ds.D, dtype=bool)
     position = {inst.index: p for p, inst in enumerate(ds.batch.instances)}  # env_index -> e
