@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linprog
+from scipy.optimize import linprog, nnls
 from scipy.spatial import ConvexHull, QhullError
 from scipy.stats import multivariate_normal
 
@@ -69,28 +69,49 @@ def _hull_candidates(unit: np.ndarray, u: np.ndarray) -> np.ndarray | None:
 
 
 def _lp_filter(unit: np.ndarray, cand: np.ndarray) -> np.ndarray:
-    """Drop row i when min n_i . w over the other kept rows' cone (in the unit box) >= -tol.
+    """Drop row i when it is redundant for the cone of the other kept rows.
 
-    The reference-spec 5.2 check, run over the current kept set so duplicates of a facet
-    direction cannot protect each other.
+    The reference-spec 5.2 check (``min n_i . w`` over the other kept rows' cone within
+    the unit box ``>= -1e-9``), run over the current kept set so duplicates of a facet
+    direction cannot protect each other. It is decided by Farkas' lemma first: ``n_i`` is
+    redundant iff it lies in the cone of the others, and the distance ``r`` from ``n_i`` to
+    that cone (non-negative least squares, ~10 us) bounds the LP's minimum between
+    ``-r sqrt(F)`` and ``-r``. Only when ``r`` falls in the band where the two criteria
+    could disagree (``1e-9 / sqrt(F) < r <= 1e-9``) is the LP itself solved.
     """
     kept = list(int(i) for i in cand)
     dim = unit.shape[1]
     i = 0
     while i < len(kept):
         others = unit[[j for j in kept if j != kept[i]]]
-        res = linprog(
-            unit[kept[i]],
-            A_ub=-others if len(others) else None,
-            b_ub=np.zeros(len(others)) if len(others) else None,
-            bounds=[(-1.0, 1.0)] * dim,
-            method="highs",
-        )
-        if res.status == 0 and res.fun >= -_REDUNDANT_TOL:
+        if _redundant(unit[kept[i]], others, dim):
             kept.pop(i)
         else:
             i += 1
     return np.asarray(kept, dtype=np.intp)
+
+
+def _redundant(row: np.ndarray, others: np.ndarray, dim: int) -> bool:
+    """Whether ``row . w >= 0`` follows from ``others @ w >= 0`` (unit rows), see _lp_filter."""
+    if not len(others):
+        return False
+    try:
+        lam, _ = nnls(others.T, row, maxiter=50 * len(others))
+        r = float(np.linalg.norm(others.T @ lam - row))
+    except RuntimeError:  # no convergence: let the LP decide
+        r = _REDUNDANT_TOL
+    if r <= _REDUNDANT_TOL / np.sqrt(dim):
+        return True
+    if r > _REDUNDANT_TOL:
+        return False
+    return _lp_redundant(row, others, dim)
+
+
+def _lp_redundant(row: np.ndarray, others: np.ndarray, dim: int) -> bool:
+    """The reference's LP: ``min row . w`` s.t. ``others @ w >= 0``, ``-1 <= w <= 1``."""
+    res = linprog(row, A_ub=-others, b_ub=np.zeros(len(others)),
+                  bounds=[(-1.0, 1.0)] * dim, method="highs")
+    return bool(res.status == 0 and res.fun >= -_REDUNDANT_TOL)
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> float:
