@@ -249,3 +249,21 @@ def test_loop_rows_match_brute_force_and_hold_for_true_weights(name: str) -> Non
         want.discard((0, 0, 0))
         assert as_set(rows) == want, (e, m)
         assert np.all(rows @ dom.weights >= -1e-12)  # the true weights make no loop pay
+
+
+def test_reduce_sets_does_not_estimate_areas(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Callers of reduce_sets only need rows; for > 3 features an area is a Monte Carlo
+    estimate, so none may be computed (reduce_and_measure still measures)."""
+    from cfteach.bec.rows import group_rows, reduce_and_measure, reduce_sets
+    from cfteach.geometry import _highdim, clear_cache
+
+    calls = []
+    real = _highdim.area_nd
+    monkeypatch.setattr(_highdim, "area_nd", lambda *a, **k: calls.append(1) or real(*a, **k))
+    clear_cache()
+    rows = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [1, 1, 0, 0], [0, 0, 1, 1], [1, 2, 3, 1]])
+    rs = group_rows(rows, np.array([0, 0, 0, 1, 1]), 2)
+    red = reduce_sets(rs)
+    assert red[0].tolist() == [[0, 1, 0, 0], [1, 0, 0, 0]] and calls == []
+    _, areas = reduce_and_measure(rs)
+    assert len(calls) > 0 and np.all(areas > 0)

@@ -279,6 +279,7 @@ def reduce_many(
     dim: int | None = None,
     *,
     progress: bool | None = None,
+    measure: bool = True,
 ) -> tuple[list[np.ndarray], np.ndarray]:
     """Reduce and measure many constraint sets: ``(reduced arrays, areas)``.
 
@@ -288,6 +289,8 @@ def reduce_many(
     vectorised batches of equal size, and each distinct set is solved once (shared with
     ``Region`` through the process-wide cache). ``progress`` shows a tqdm bar on stderr
     (default: when stderr is a terminal and there are more than 5,000 sets).
+    ``measure=False`` skips the areas (returned as NaN): for callers that only need the
+    irredundant rows, which matters for more than 3 features where an area is an estimate.
     """
     mats = [as_matrix(a, dim) for a in arrays]
     if not mats:
@@ -311,7 +314,7 @@ def reduce_many(
         hit = seen.get(key)
         if hit is None:
             r = Region._from_canonical(rows, integral)
-            hit = (r.reduced(), r.area())
+            hit = (r.reduced(), r.area() if measure else np.nan)
             seen[key] = hit
         reduced.append(hit[0].copy())
         areas[i] = hit[1]
