@@ -26,8 +26,11 @@ _AREA_CACHE: dict[tuple[Any, ...], tuple[float, float]] = {}  # F > 3 estimates
 
 def clear_cache() -> None:
     """Forget all memoised region solutions (for memory or benchmarking)."""
+    from ._shared import _SAMPLES
+
     _CACHE.clear()
     _AREA_CACHE.clear()
+    _SAMPLES.clear()
 
 
 def sphere_area(dim: int) -> float:
@@ -272,6 +275,37 @@ def intersection_areas(region: Region, row_sets: Iterable[Any]) -> np.ndarray:
     if not stacked:
         return np.zeros(0)
     return reduce_many(stacked, dim=region.dim)[1]
+
+
+#: Defaults of ``intersection_fractions`` for F > 3 (effective sample size, draw budget).
+SHARED_ESS = 40_000
+SHARED_MAX_DRAWS = 2_000_000
+
+
+def intersection_fractions(
+    region: Region,
+    row_sets: Sequence[Any],
+    *,
+    seed: int = 0,
+    ess: float = SHARED_ESS,
+    max_draws: int = SHARED_MAX_DRAWS,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(fractions, standard_errors)``: ``area(region & Region(rows)) / area(region)`` for
+    many row sets, the ratio a knowledge gain inverts.
+
+    F = 3: exact (``intersection_areas / region.area()``, errors 0). F > 3: every set is
+    scored on one shared, seeded importance sample of ``region`` (common random numbers; see
+    docs/geometry.md), so the value of a set depends only on ``region``, the set's rows and
+    ``seed`` -- never on the other sets passed with it. An empty region gives zeros.
+    """
+    sets = [np.asarray(r).reshape(-1, region.dim) for r in row_sets]
+    if not sets or region.is_empty():
+        return np.zeros(len(sets)), np.zeros(len(sets))
+    if region.dim == 3:
+        return intersection_areas(region, sets) / region.area(), np.zeros(len(sets))
+    from ._shared import fractions
+
+    return fractions(region, sets, seed=seed, ess=ess, max_draws=max_draws)
 
 
 def reduce_many(
