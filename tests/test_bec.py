@@ -267,3 +267,33 @@ def test_reduce_sets_does_not_estimate_areas(monkeypatch: pytest.MonkeyPatch) ->
     assert red[0].tolist() == [[0, 1, 0, 0], [1, 0, 0, 0]] and calls == []
     _, areas = reduce_and_measure(rs)
     assert len(calls) > 0 and np.all(areas > 0)
+
+
+def test_gains_beyond_three_features_match_the_embedded_exact_gains() -> None:
+    """A 3-feature problem embedded in 5 features has the same gains; the 5-feature ones are
+    estimates on one shared sample, within their stated error, and a demo's gain does not
+    depend on which other demos are asked with it (chunks across workers)."""
+    from cfteach.bec.gain import gain_estimates
+    from cfteach.bec.rows import group_rows
+
+    rng = np.random.default_rng(3)
+    w = np.array([0.3, -0.5, -0.8])
+    rows, demo = [], []
+    for d in range(40):
+        c = rng.integers(-4, 5, size=(int(rng.integers(0, 4)), 3))
+        s = np.sign(c @ w).astype(np.int64)
+        s[s == 0] = 1
+        rows.append(c * s[:, None])
+        demo += [d] * len(c)
+    r3 = np.vstack(rows)
+    belief3 = Region([[0, 0, -1], [0, -1, 0]])
+    exact = knowledge_gains(belief3, group_rows(r3, np.array(demo), 40))
+    r5 = np.hstack([r3, np.zeros((len(r3), 2), dtype=np.int64)])
+    rs5 = group_rows(r5, np.array(demo), 40)
+    belief5 = Region([[0, 0, -1, 0, 0], [0, -1, 0, 0, 0]])
+    g, se = gain_estimates(belief5, rs5)
+    assert np.all(np.abs(g - exact) <= 5 * se + 1e-12)
+    assert np.all((se == 0) == (exact <= 1))  # no cut, no error; every real cut measured
+    assert np.any(exact > 1.5)
+    part = np.array([31, 2, 17, 5])
+    assert knowledge_gains(belief5, rs5, part).tolist() == g[part].tolist()
