@@ -162,3 +162,14 @@ def test_integer_cones_need_no_linear_program(monkeypatch: pytest.MonkeyPatch) -
     s[s == 0] = 1
     red = Region(base * s[:, None]).reduced()
     assert 0 < len(red) < 12 and calls == []
+
+
+@pytest.mark.parametrize("k", [50, 1000])
+def test_thin_wedge_with_a_free_axis_is_measured(k: int) -> None:
+    """A 1/k x 1/k rad wedge times a free fourth axis: not simplicial, so sampled. The
+    Gaussian shifted towards an interior direction measured it as 0 +- 0 (k = 1000) or
+    4 times too small; the truth is the 3-feature area (exact) scaled to S^3."""
+    rows = np.array([[1, 0, 0, 0], [-k, 0, 1, 0], [0, 1, 0, 0], [0, -k, 1, 0]])
+    want = Region(rows[:, :3]).fraction() * sphere_area(4)
+    val, se = Region(rows).area_estimate()
+    assert 0 < se < 0.05 * want and abs(val - want) < 5 * se

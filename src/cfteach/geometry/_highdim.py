@@ -9,8 +9,9 @@ dimensions. The measure is ``fraction * |S^(F-1)|`` with ``fraction = P(N Z >= 0
 * for up to F linearly independent rows (a simplicial cone) as a Gaussian orthant
   probability with Genz's quasi-Monte Carlo (``scipy.stats.multivariate_normal.cdf``),
   repeated with independent randomisations to give the standard error;
-* otherwise by importance sampling ``Z ~ N(s u, I)`` shifted towards the interior
-  direction ``u``, with ``s`` picked by a pilot run; the standard error is the sample one.
+* otherwise by importance sampling of directions (``_shared.shared_sample``: a mixture of
+  angular central Gaussians around the cone's centre, with bounded weights); the standard
+  error is the sample one.
 """
 
 from __future__ import annotations
@@ -141,8 +142,11 @@ def area_nd(region: Any, solved: SolvedND, n_samples: int, seed: int) -> tuple[f
     if rank == k:
         frac, se = _orthant(unit @ unit.T, seed)
         return total * frac, total * se
-    frac, se = _importance(unit, solved.interior, n_samples, seed)
-    return total * frac, total * se
+    from ._shared import shared_sample
+
+    smp = shared_sample(unit, solved.interior, region._key(), seed=seed,
+                        ess=n_samples / 5, max_draws=10 * n_samples)
+    return total * smp.frac, total * smp.frac_se
 
 
 def _orthant(cov: np.ndarray, seed: int) -> tuple[float, float]:
@@ -163,40 +167,6 @@ def _orthant(cov: np.ndarray, seed: int) -> tuple[float, float]:
         for r in range(_GENZ_REPEATS)
     ]
     return float(np.mean(vals)), float(np.std(vals, ddof=1) / np.sqrt(len(vals)))
-
-
-def _is_run(
-    unit: np.ndarray, mu: np.ndarray, n: int, rng: np.random.Generator
-) -> tuple[float, float]:
-    dim = unit.shape[1]
-    total = 0.0
-    total_sq = 0.0
-    done = 0
-    chunk = 50_000
-    while done < n:
-        b = min(chunk, n - done)
-        z = rng.standard_normal((b, dim)) + mu
-        hit = np.all(z @ unit.T >= 0, axis=1)
-        w = np.exp(-(z[hit] @ mu) + 0.5 * (mu @ mu))
-        total += float(w.sum())
-        total_sq += float((w * w).sum())
-        done += b
-    mean = total / n
-    var = max(total_sq / n - mean * mean, 0.0)
-    return mean, float(np.sqrt(var / n))
-
-
-def _importance(
-    unit: np.ndarray, u: np.ndarray, n: int, seed: int
-) -> tuple[float, float]:
-    """Importance sampling from N(s u, I); the shift s minimises the pilot's relative error."""
-    rng = np.random.default_rng(seed)
-    best_s, best_rel = 0.0, np.inf
-    for s in (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0):
-        mean, se = _is_run(unit, s * u, 4000, rng)
-        if mean > 0 and se / mean < best_rel:
-            best_s, best_rel = s, se / mean
-    return _is_run(unit, best_s * u, n, rng)
 
 
 def hit_and_run(
