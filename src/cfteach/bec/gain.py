@@ -120,3 +120,43 @@ def gain_estimates(running: Region, rowset: RowSet, demos: np.ndarray | None = N
             e = np.where(p > 0, p_se / np.where(p > 0, p * p, 1.0), 0.0)
         gains[todo], errors[todo] = g[slot], e[slot]
     return gains, errors
+
+
+#: At most this many distinct contenders are re-estimated on samples of their own.
+REFINE_MAX = 16
+
+
+def refine_top(running: Region, rowset: RowSet, gains: np.ndarray, errors: np.ndarray,
+               *, z: float = 3.0, seed: int = 0) -> np.ndarray:
+    """Gains (over all demos of `rowset`) with the possible best ones measured more precisely.
+
+    A demo is a contender when its gain is above 1 and within ``z`` standard errors of the
+    best lower bound ``max(gain - z error)``. When the contenders have more than one
+    distinct row set, the (up to ``REFINE_MAX``, highest upper bounds first) sets are
+    re-estimated each on a sample of its own (``intersection_fractions(separate=True)``,
+    effective size 40,000): independent estimates with a relative error near 0.5%, where the
+    shared sample's error grows as the candidate's share of the belief shrinks. Exact gains
+    (errors all 0, e.g. 3 features) come back unchanged. Run it once on the gains of all
+    demos (not per chunk): which demos contend depends on all of them, and each refined
+    value depends only on the belief, the demo's rows and ``seed``.
+    """
+    live = gains > 1
+    if not np.any(errors[live] > 0):
+        return gains
+    hi = gains + z * errors
+    best_lo = float(np.max((gains - z * errors)[live]))
+    cand = np.flatnonzero(live & (hi >= best_lo))
+    sets, slot = rowset.distinct(cand)
+    if len(sets) <= 1:
+        return gains
+    first_hi = np.full(len(sets), -np.inf)
+    np.maximum.at(first_hi, slot, hi[cand])
+    chosen = np.argsort(-first_hi, kind="stable")[:REFINE_MAX]
+    p, _ = intersection_fractions(running, [sets[i] for i in chosen], seed=seed, separate=True)
+    new = np.full(len(sets), np.nan)
+    with np.errstate(divide="ignore"):
+        new[chosen] = np.where(p > 0, 1.0 / np.where(p > 0, p, 1.0), 0.0)
+    out = gains.copy()
+    hit = ~np.isnan(new[slot])
+    out[cand[hit]] = new[slot[hit]]
+    return out

@@ -143,8 +143,9 @@ def _hits(rng: np.random.Generator, mix: _Mixture, unit: np.ndarray, n: int,
 
 
 def shared_sample(unit: np.ndarray, u: np.ndarray, key: tuple[Any, ...], *, seed: int,
-                  ess: float, max_draws: int) -> SharedSample:
-    """The seeded importance sample of the cone ``unit @ w >= 0`` (cached by ``key``).
+                  ess: float, max_draws: int, cache: bool = True) -> SharedSample:
+    """The seeded importance sample of the cone ``unit @ w >= 0`` (cached by ``key`` unless
+    ``cache`` is False, as for the one-off samples of tails, which would push out beliefs).
 
     Proposal: a mixture of angular central Gaussians folded onto the hemisphere around the
     cone's centre ``c`` (``centre``; the cone lies in ``c . x >= 0`` because ``c`` is a
@@ -189,9 +190,10 @@ def shared_sample(unit: np.ndarray, u: np.ndarray, key: tuple[Any, ...], *, seed
     frac_se = float(np.sqrt(max(sw2 / draws - frac * frac, 0.0) / draws))
     out = SharedSample(points, weights, (sw * sw / sw2) if sw2 > 0 else 0.0, draws, frac,
                        frac_se)
-    _SAMPLES[ckey] = out
-    if len(_SAMPLES) > _SAMPLE_CACHE:
-        _SAMPLES.popitem(last=False)
+    if cache:
+        _SAMPLES[ckey] = out
+        if len(_SAMPLES) > _SAMPLE_CACHE:
+            _SAMPLES.popitem(last=False)
     return out
 
 
@@ -234,8 +236,13 @@ def _inside_counts(sample: SharedSample, sets: list[np.ndarray], batch: int = 25
 
 
 def fractions(region: Any, sets: list[np.ndarray], *, seed: int, ess: float,
-              max_draws: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(p, se)``: the fraction of ``region`` (F > 3, non-empty) inside each row set."""
+              max_draws: int, separate: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``(p, se)``: the fraction of ``region`` (F > 3, non-empty) inside each row set.
+
+    ``separate``: every set's intersection gets a sample of its own (``ess``, ``max_draws``)
+    instead of sharing the region's, for the few candidates whose ranking the shared
+    sample leaves open.
+    """
     s = region._solve()
     unit = region._units()[s.order]
     sample = shared_sample(unit, s.interior, region._key(), seed=seed, ess=ess,
@@ -244,6 +251,10 @@ def fractions(region: Any, sets: list[np.ndarray], *, seed: int, ess: float,
     se = np.zeros(len(sets))
     todo = [i for i, c in enumerate(sets) if len(c)]
     if not todo:
+        return p, se
+    if separate:
+        for i in todo:
+            p[i], se[i] = _direct(region, sets[i], seed, sample, ess, max_draws)
         return p, se
     w_in, w2_in = _inside_counts(sample, [sets[i] for i in todo])
     w2_all = float((sample.weights ** 2).sum())
@@ -262,7 +273,8 @@ def fractions(region: Any, sets: list[np.ndarray], *, seed: int, ess: float,
     return p, se
 
 
-def _share(rows: np.ndarray, dim: int, seed: int) -> tuple[float, float]:
+def _share(rows: np.ndarray, dim: int, seed: int, ess: float = _TAIL_ESS,
+           max_draws: int = _TAIL_DRAWS) -> tuple[float, float]:
     """A region's share of the sphere and its error, from a (smaller) sample of its own."""
     from .region import Region
 
@@ -273,15 +285,15 @@ def _share(rows: np.ndarray, dim: int, seed: int) -> tuple[float, float]:
     unit = r._units()[s.order]
     if len(unit) == 0:
         return 1.0, 0.0
-    smp = shared_sample(unit, s.interior, r._key(), seed=seed, ess=_TAIL_ESS,
-                        max_draws=_TAIL_DRAWS)
+    smp = shared_sample(unit, s.interior, r._key(), seed=seed, ess=ess,
+                        max_draws=max_draws, cache=False)
     return smp.frac, smp.frac_se
 
 
 def _direct(region: Any, rows: np.ndarray, seed: int, base: SharedSample,
-            ) -> tuple[float, float]:
+            ess: float = _TAIL_ESS, max_draws: int = _TAIL_DRAWS) -> tuple[float, float]:
     """``share(B & C) / share(B)``, the intersection sampled on its own."""
-    a, a_se = _share(_stack(region, rows), region.dim, seed)
+    a, a_se = _share(_stack(region, rows), region.dim, seed, ess, max_draws)
     if a <= 0 or base.frac <= 0:
         return 0.0, 0.0
     r = a / base.frac

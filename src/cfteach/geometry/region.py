@@ -289,6 +289,7 @@ def intersection_fractions(
     seed: int = 0,
     ess: float = SHARED_ESS,
     max_draws: int = SHARED_MAX_DRAWS,
+    separate: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(fractions, standard_errors)``: ``area(region & Region(rows)) / area(region)`` for
     many row sets, the ratio a knowledge gain inverts.
@@ -297,6 +298,8 @@ def intersection_fractions(
     scored on one shared, seeded importance sample of ``region`` (common random numbers; see
     docs/geometry.md), so the value of a set depends only on ``region``, the set's rows and
     ``seed`` -- never on the other sets passed with it. An empty region gives zeros.
+    ``separate=True`` samples each intersection on its own instead (F > 3; slower, and the
+    estimates are independent): the escalation for candidates the shared sample cannot rank.
     """
     sets = [np.asarray(r).reshape(-1, region.dim) for r in row_sets]
     if not sets or region.is_empty():
@@ -305,7 +308,7 @@ def intersection_fractions(
         return intersection_areas(region, sets) / region.area(), np.zeros(len(sets))
     from ._shared import fractions
 
-    return fractions(region, sets, seed=seed, ess=ess, max_draws=max_draws)
+    return fractions(region, sets, seed=seed, ess=ess, max_draws=max_draws, separate=separate)
 
 
 def reduce_many(

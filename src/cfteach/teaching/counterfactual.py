@@ -17,7 +17,7 @@ import numpy as np
 
 from cfteach.bec.constraints import counterfactual_rows
 from cfteach.bec.demos import DemoSet
-from cfteach.bec.gain import knowledge_gains
+from cfteach.bec.gain import gain_estimates, refine_top
 from cfteach.bec.rows import RowSet, reduce_sets
 from cfteach.geometry import Region
 from cfteach.teaching.common import (
@@ -143,7 +143,7 @@ def counterfactual_curriculum(
             log.append({"round": len(chosen), "stop": "no human model inside the belief"})
             break
         joint, bounded, _ = counterfactual_rows(ds, W, unbounded=unbounded)
-        gains_all = knowledge_gains(running, joint)
+        gains_all, errors_all = gain_estimates(running, joint)  # errors 0 for 3 features
         cands: list[int] = []
         while True:
             mask = masks[mask_i]
@@ -152,6 +152,7 @@ def counterfactual_curriculum(
                 live = np.flatnonzero(gains_all > 1)
                 gains = gains_all.copy()
                 gains[live[blocked(joint, live, mask)]] = 0.0
+            gains = refine_top(running, joint, gains, errors_all)  # > 3 features only
             cands = candidate_set(ds.profile, gains, proportion, consistent)
             if cands or mask is None:
                 break
