@@ -94,8 +94,9 @@ class _Mixture:
     with ``q_l(x) = |S_l|^(-1/2) (x^T S_l^-1 x)^(-F/2) / |S^(F-1)|``."""
 
     def __init__(self, c: np.ndarray, fitted: np.ndarray | None = None,
-                 fitted_pi: float = 0.5) -> None:
+                 fitted_pi: float = 0.5, fold: bool = True) -> None:
         self.c = c
+        self.fold = fold
         self.a = np.asarray(_CONCENTRATIONS)
         lad = 1.0 - (fitted_pi if fitted is not None else 0.0)
         self.pis = np.full(len(self.a), lad / len(self.a))
@@ -120,7 +121,8 @@ class _Mixture:
         if self.chol is not None:
             y[~lad] = y[~lad] @ self.chol.T
         y /= np.linalg.norm(y, axis=1, keepdims=True)
-        y *= np.where(y @ self.c < 0, -1.0, 1.0)[:, None]
+        if self.fold:
+            y *= np.where(y @ self.c < 0, -1.0, 1.0)[:, None]
         return y
 
     def weights(self, x: np.ndarray) -> np.ndarray:
@@ -132,7 +134,7 @@ class _Mixture:
         if self.inv is not None:
             q = np.einsum("ij,ij->i", x @ self.inv, x)
             dens += self.fitted_pi * np.exp(-0.5 * self.logdet - 0.5 * dim * np.log(q))
-        return 0.5 / dens
+        return (0.5 if self.fold else 1.0) / dens
 
 
 def _hits(rng: np.random.Generator, mix: _Mixture, unit: np.ndarray, n: int,
@@ -163,14 +165,15 @@ def shared_sample(unit: np.ndarray, u: np.ndarray, key: tuple[Any, ...], *, seed
     dim = unit.shape[1]
     c = centre(unit) if len(unit) else None
     c = u if c is None else c
-    mix = _Mixture(c)
+    fold = len(unit) > 0  # the whole sphere is not inside a hemisphere
+    mix = _Mixture(c, fold=fold)
     for _ in range(_ADAPT):
         hx, hw = _hits(rng, mix, unit, _PILOT)
         if len(hw) <= 4 * dim:
             break
         m2 = (hx * hw[:, None]).T @ hx / hw.sum()
         fitted = m2 / np.trace(m2) + 1e-6 * np.eye(dim)
-        mix = _Mixture(c, fitted)
+        mix = _Mixture(c, fitted, fold=fold)
     pts, wts, draws = [], [], 0
     sw = sw2 = 0.0
     while draws < max_draws:
