@@ -108,6 +108,7 @@ def test_three_features_stay_exact() -> None:
 
 
 def test_the_whole_sphere_is_not_folded_onto_a_hemisphere() -> None:
-    p, se = intersection_fractions(Region.full(4), [np.array([[1, 0, 0, 0]]),
-                                                    np.array([[1, 0, 0, 0], [0, 1, 0, 0]])])
-    assert np.all(np.abs(p - [0.5, 0.25]) <= 5 * se) and np.all(se < 0.01)
+    sets = [np.array([[1, 0, 0, 0]]), np.array([[0, 0, 0, 1]]), np.array([[0, 0, 0, -1]]),
+            np.array([[1, 0, 0, 0], [0, 1, 0, 0]])]
+    p, se = intersection_fractions(Region.full(4), sets)
+    assert np.all(np.abs(p - [0.5, 0.5, 0.5, 0.25]) <= 5 * se) and np.all(se < 0.01)
