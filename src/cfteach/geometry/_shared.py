@@ -111,14 +111,15 @@ class _Mixture:
 
     def draw(self, rng: np.random.Generator, n: int) -> np.ndarray:
         dim = len(self.c)
-        probs = np.append(self.pis, self.fitted_pi)
-        comp = rng.choice(len(probs), size=n, p=probs / probs.sum())
+        cum = np.cumsum(np.append(self.pis, self.fitted_pi))
+        comp = np.minimum(np.searchsorted(cum / cum[-1], rng.random(n), side="right"),
+                          len(cum) - 1)
         y = rng.standard_normal((n, dim))
         lad = comp < len(self.a)
         # ladder: sqrt(I + a c c^T) z = z + (sqrt(1 + a) - 1) (c . z) c
-        k = np.sqrt(1.0 + self.a[comp[lad]]) - 1.0
-        y[lad] += (k * (y[lad] @ self.c))[:, None] * self.c
-        if self.chol is not None:
+        k = np.where(lad, np.sqrt(1.0 + self.a[np.minimum(comp, len(self.a) - 1)]) - 1.0, 0.0)
+        y += (k * (y @ self.c))[:, None] * self.c
+        if self.chol is not None and not lad.all():
             y[~lad] = y[~lad] @ self.chol.T
         y /= np.linalg.norm(y, axis=1, keepdims=True)
         if self.fold:
@@ -130,10 +131,10 @@ class _Mixture:
         c2 = (x @ self.c) ** 2
         # ladder: |S| = 1 + a, x^T S^-1 x = 1 - a / (1 + a) (c . x)^2 for unit x
         quad = 1.0 - np.outer(c2, self.a / (1.0 + self.a))
-        dens = (np.exp(-0.5 * dim * np.log(quad)) * (self.pis / np.sqrt(1.0 + self.a))).sum(1)
+        dens = (quad ** (-0.5 * dim)) @ (self.pis / np.sqrt(1.0 + self.a))
         if self.inv is not None:
             q = np.einsum("ij,ij->i", x @ self.inv, x)
-            dens += self.fitted_pi * np.exp(-0.5 * self.logdet - 0.5 * dim * np.log(q))
+            dens += self.fitted_pi * np.exp(-0.5 * self.logdet) * q ** (-0.5 * dim)
         return (0.5 if self.fold else 1.0) / dens
 
 
