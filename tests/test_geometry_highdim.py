@@ -129,7 +129,8 @@ def _lp_reduce(unit: np.ndarray) -> list[int]:
 @pytest.mark.parametrize("dim", [4, 5, 6])
 def test_least_squares_redundancy_test_matches_one_lp_per_row(dim: int) -> None:
     """The NNLS (Farkas) pre-decision keeps exactly the rows the LP-per-row filter keeps,
-    on random integer cones with many redundant, parallel and sum rows."""
+    on random integer cones with many redundant, parallel and sum rows, and on the same
+    rows jittered to floats."""
     from cfteach.geometry._highdim import _lp_filter
 
     rng = np.random.default_rng(dim)
@@ -141,9 +142,9 @@ def test_least_squares_redundancy_test_matches_one_lp_per_row(dim: int) -> None:
         base = base * s[:, None]
         combos = base[rng.integers(0, len(base), 4)] + base[rng.integers(0, len(base), 4)]
         rows = np.vstack([base, combos])
-        r = Region(rows)
-        unit = r._units()
-        assert _lp_filter(unit, np.arange(len(unit))).tolist() == _lp_reduce(unit)
+        for r in (Region(rows), Region(rows + 1e-3 * rng.standard_normal(rows.shape))):
+            unit = r._units()
+            assert _lp_filter(unit, np.arange(len(unit))).tolist() == _lp_reduce(unit)
 
 
 def test_integer_cones_need_no_linear_program(monkeypatch: pytest.MonkeyPatch) -> None:
