@@ -145,7 +145,7 @@ def area_nd(region: Any, solved: SolvedND, n_samples: int, seed: int) -> tuple[f
     from ._shared import shared_sample
 
     smp = shared_sample(unit, solved.interior, region._key(), seed=seed,
-                        ess=n_samples / 5, max_draws=10 * n_samples)
+                        ess=n_samples / 20, max_draws=5 * n_samples)
     return total * smp.frac, total * smp.frac_se
 
 
