@@ -107,3 +107,70 @@ def test_hit_and_run_matches_rejection_sampling() -> None:
     for axis in range(4):
         assert stats.ks_2samp(h[:, axis], rej[:, axis]).pvalue > 1e-3
     assert np.array_equal(h, r.sample(2000, np.random.default_rng(5)))
+
+
+def _lp_reduce(unit: np.ndarray) -> list[int]:
+    """The reference's filter, one LP per row over the current kept set (independent code)."""
+    from scipy.optimize import linprog
+
+    kept = list(range(len(unit)))
+    i = 0
+    while i < len(kept):
+        others = unit[[j for j in kept if j != kept[i]]]
+        res = linprog(unit[kept[i]], A_ub=-others, b_ub=np.zeros(len(others)),
+                      bounds=[(-1.0, 1.0)] * unit.shape[1], method="highs")
+        if res.status == 0 and res.fun >= -1e-9:
+            kept.pop(i)
+        else:
+            i += 1
+    return kept
+
+
+@pytest.mark.parametrize("dim", [4, 5, 6])
+def test_least_squares_redundancy_test_matches_one_lp_per_row(dim: int) -> None:
+    """The NNLS (Farkas) pre-decision keeps exactly the rows the LP-per-row filter keeps,
+    on random integer cones with many redundant, parallel and sum rows, and on the same
+    rows jittered to floats."""
+    from cfteach.geometry._highdim import _lp_filter
+
+    rng = np.random.default_rng(dim)
+    for _ in range(40):
+        w = rng.standard_normal(dim)
+        base = rng.integers(-3, 4, size=(int(rng.integers(3, 14)), dim))
+        s = np.sign(base @ w).astype(np.int64)
+        s[s == 0] = 1
+        base = base * s[:, None]
+        combos = base[rng.integers(0, len(base), 4)] + base[rng.integers(0, len(base), 4)]
+        rows = np.vstack([base, combos])
+        for r in (Region(rows), Region(rows + 1e-3 * rng.standard_normal(rows.shape))):
+            unit = r._units()
+            assert _lp_filter(unit, np.arange(len(unit))).tolist() == _lp_reduce(unit)
+
+
+def test_integer_cones_need_no_linear_program(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Integer rows are never in the band where least squares and the LP could disagree,
+    so reducing them solves no LP at all (the LP-per-row filter solved one per row)."""
+    from cfteach.geometry import _highdim, clear_cache
+
+    calls = []
+    real = _highdim.linprog
+    monkeypatch.setattr(_highdim, "linprog", lambda *a, **k: calls.append(1) or real(*a, **k))
+    clear_cache()
+    rng = np.random.default_rng(7)
+    w = rng.standard_normal(5)
+    base = rng.integers(-3, 4, size=(12, 5))
+    s = np.sign(base @ w).astype(np.int64)
+    s[s == 0] = 1
+    red = Region(base * s[:, None]).reduced()
+    assert 0 < len(red) < 12 and calls == []
+
+
+@pytest.mark.parametrize("k", [50, 1000])
+def test_thin_wedge_with_a_free_axis_is_measured(k: int) -> None:
+    """A 1/k x 1/k rad wedge times a free fourth axis: not simplicial, so sampled. The
+    Gaussian shifted towards an interior direction measured it as 0 +- 0 (k = 1000) or
+    4 times too small; the truth is the 3-feature area (exact) scaled to S^3."""
+    rows = np.array([[1, 0, 0, 0], [-k, 0, 1, 0], [0, 1, 0, 0], [0, -k, 1, 0]])
+    want = Region(rows[:, :3]).fraction() * sphere_area(4)
+    val, se = Region(rows).area_estimate()
+    assert 0 < se < 0.05 * want and abs(val - want) < 5 * se

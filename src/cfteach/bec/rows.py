@@ -119,22 +119,25 @@ def group_rows(rows: np.ndarray, demo: np.ndarray, n_demos: int) -> RowSet:
     return _from_sorted(np.ascontiguousarray(rows), demo, n_demos)
 
 
-def reduce_and_measure(rowset: RowSet, demos: np.ndarray | None = None,
-                       ) -> tuple[dict[int, np.ndarray], np.ndarray]:
+def reduce_and_measure(rowset: RowSet, demos: np.ndarray | None = None, *,
+                       measure: bool = True) -> tuple[dict[int, np.ndarray], np.ndarray]:
     """Irredundant constraints and area of each demo's row set (`geometry.reduce_many`,
     which solves each distinct set once).
 
     Returns ``({demo: reduced rows [k, F] int64}, areas [n])``; a demo without rows maps to
     ``(0, F)`` and the whole sphere's area. Rows of a RowSet are integers, so the reduced
-    rows are exact integers too.
+    rows are exact integers too. ``measure=False`` leaves the areas NaN (not computed).
     """
     ids = np.arange(rowset.n_demos) if demos is None else np.asarray(demos, dtype=np.int64)
     sets, slot = rowset.distinct(ids)
-    reduced, areas = reduce_many(sets, dim=rowset.F)
+    reduced, areas = reduce_many(sets, dim=rowset.F, measure=measure)
     return ({d: reduced[i] for d, i in zip(ids.tolist(), slot.tolist(), strict=True)},
             areas[slot] if len(slot) else np.zeros(0))
 
 
 def reduce_sets(rowset: RowSet, demos: np.ndarray | None = None) -> dict[int, np.ndarray]:
-    """`reduce_and_measure` without the areas: ``{demo: reduced rows [k, F] int64}``."""
-    return reduce_and_measure(rowset, demos)[0]
+    """`reduce_and_measure` without the areas: ``{demo: reduced rows [k, F] int64}``.
+
+    The areas are not computed at all (for more than 3 features each one is a Monte Carlo
+    estimate, and the callers here only need the rows)."""
+    return reduce_and_measure(rowset, demos, measure=False)[0]

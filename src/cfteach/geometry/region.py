@@ -26,8 +26,11 @@ _AREA_CACHE: dict[tuple[Any, ...], tuple[float, float]] = {}  # F > 3 estimates
 
 def clear_cache() -> None:
     """Forget all memoised region solutions (for memory or benchmarking)."""
+    from ._shared import _SAMPLES
+
     _CACHE.clear()
     _AREA_CACHE.clear()
+    _SAMPLES.clear()
 
 
 def sphere_area(dim: int) -> float:
@@ -274,11 +277,46 @@ def intersection_areas(region: Region, row_sets: Iterable[Any]) -> np.ndarray:
     return reduce_many(stacked, dim=region.dim)[1]
 
 
+#: Defaults of ``intersection_fractions`` for F > 3 (effective sample size, draw budget).
+SHARED_ESS = 40_000
+SHARED_MAX_DRAWS = 2_000_000
+
+
+def intersection_fractions(
+    region: Region,
+    row_sets: Sequence[Any],
+    *,
+    seed: int = 0,
+    ess: float = SHARED_ESS,
+    max_draws: int = SHARED_MAX_DRAWS,
+    separate: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(fractions, standard_errors)``: ``area(region & Region(rows)) / area(region)`` for
+    many row sets, the ratio a knowledge gain inverts.
+
+    F = 3: exact (``intersection_areas / region.area()``, errors 0). F > 3: every set is
+    scored on one shared, seeded importance sample of ``region`` (common random numbers; see
+    docs/geometry.md), so the value of a set depends only on ``region``, the set's rows and
+    ``seed`` -- never on the other sets passed with it. An empty region gives zeros.
+    ``separate=True`` samples each intersection on its own instead (F > 3; slower, and the
+    estimates are independent): the escalation for candidates the shared sample cannot rank.
+    """
+    sets = [np.asarray(r).reshape(-1, region.dim) for r in row_sets]
+    if not sets or region.is_empty():
+        return np.zeros(len(sets)), np.zeros(len(sets))
+    if region.dim == 3:
+        return intersection_areas(region, sets) / region.area(), np.zeros(len(sets))
+    from ._shared import fractions
+
+    return fractions(region, sets, seed=seed, ess=ess, max_draws=max_draws, separate=separate)
+
+
 def reduce_many(
     arrays: Iterable[Any] | Sequence[Any],
     dim: int | None = None,
     *,
     progress: bool | None = None,
+    measure: bool = True,
 ) -> tuple[list[np.ndarray], np.ndarray]:
     """Reduce and measure many constraint sets: ``(reduced arrays, areas)``.
 
@@ -288,6 +326,8 @@ def reduce_many(
     vectorised batches of equal size, and each distinct set is solved once (shared with
     ``Region`` through the process-wide cache). ``progress`` shows a tqdm bar on stderr
     (default: when stderr is a terminal and there are more than 5,000 sets).
+    ``measure=False`` skips the areas (returned as NaN): for callers that only need the
+    irredundant rows, which matters for more than 3 features where an area is an estimate.
     """
     mats = [as_matrix(a, dim) for a in arrays]
     if not mats:
@@ -311,7 +351,7 @@ def reduce_many(
         hit = seen.get(key)
         if hit is None:
             r = Region._from_canonical(rows, integral)
-            hit = (r.reduced(), r.area())
+            hit = (r.reduced(), r.area() if measure else np.nan)
             seen[key] = hit
         reduced.append(hit[0].copy())
         areas[i] = hit[1]

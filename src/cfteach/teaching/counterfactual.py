@@ -17,6 +17,7 @@ import numpy as np
 
 from cfteach.bec.constraints import counterfactual_rowset
 from cfteach.bec.demos import DemoSet
+from cfteach.bec.gain import REFINE_Z, refine_top
 from cfteach.bec.rows import RowSet, reduce_sets
 from cfteach.geometry import Region
 from cfteach.parallel import Executor
@@ -115,7 +116,8 @@ _MASK_FIRST = 64  # demos checked first (then 4x as many each time, while all ar
 
 
 def masked_gains(joint: RowSet, gains_all: np.ndarray, feature: int, proportion: float,
-                 executor: Executor | None = None) -> np.ndarray:
+                 executor: Executor | None = None, *, errors: np.ndarray | None = None,
+                 z: float = REFINE_Z) -> np.ndarray:
     """`gains_all` with the demos held back by the mask on `feature` set to 0, as far as the
     selection can tell.
 
@@ -125,6 +127,9 @@ def masked_gains(joint: RowSet, gains_all: np.ndarray, feature: int, proportion:
     nor tied with it under any profile's rule, so the chosen demos and the log are those of
     checking every demo (which is done for other proportions, whose target depends on the
     maximum). Checking means reducing a demo's joint constraints, the costly part.
+    With estimated gains (`errors`, more than 3 features) the floor widens to what
+    `refine_top` may still re-rank: every demo whose upper bound ``gain + z error`` reaches the
+    best unmasked demo's lower bound is checked.
     """
     live = np.flatnonzero(gains_all > 1)
     gains = gains_all.copy()
@@ -133,21 +138,25 @@ def masked_gains(joint: RowSet, gains_all: np.ndarray, feature: int, proportion:
         return gains
     order = live[np.argsort(-gains_all[live], kind="stable")]
     done, step, top = 0, _MASK_FIRST, None
+    err = np.zeros(len(gains_all)) if errors is None else np.asarray(errors, dtype=float)
+    upper = gains_all + z * err
     while done < len(order):
         if top is None:
-            stop = min(len(order), done + step)
+            block = order[done:min(len(order), done + step)]
             step *= 4
-        else:
+        else:  # everything left that could still be (or tie with) the best
             floor = top - _MASK_MARGIN * max(1.0, abs(top))
-            stop = done + int(np.count_nonzero(gains_all[order[done:]] >= floor))
-            if stop == done:
-                break
-        block = order[done:stop]
+            rest = order[done:]
+            block = rest[upper[rest] >= floor]
         held = blocked(joint, block, feature, executor)
         gains[block[held]] = 0.0
-        if top is None and not held.all():
-            top = float(gains_all[block[~held]].max())
-        done = stop
+        if top is not None:
+            break
+        done += len(block)
+        if not held.all():
+            free = block[~held]
+            best = free[np.argmax(gains_all[free])]
+            top = float(gains_all[best] - z * err[best])
     return gains
 
 
@@ -190,13 +199,15 @@ def counterfactual_curriculum(
             log.append({"round": len(chosen), "stop": "no human model inside the belief"})
             break
         joint, bounded = counterfactual_rowset(ds, W, unbounded=unbounded, executor=executor)
-        gains_all = distribute.gains(running, joint, executor)
+        gains_all, errors_all = distribute.gains(running, joint, executor)  # errors 0 if F=3
         cands: list[int] = []
         while True:
             mask = masks[mask_i]
             gains = gains_all
             if mask is not None:
-                gains = masked_gains(joint, gains_all, mask, proportion, executor)
+                gains = masked_gains(joint, gains_all, mask, proportion, executor,
+                                     errors=errors_all)
+            gains = refine_top(running, joint, gains, errors_all)  # > 3 features only
             cands = candidate_set(ds.profile, gains, proportion, consistent)
             if cands or mask is None:
                 break

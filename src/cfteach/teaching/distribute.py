@@ -19,7 +19,7 @@ import numpy as np
 
 from cfteach.bec.constraints import one_action_rows, sub_rowset
 from cfteach.bec.demos import DemoSet
-from cfteach.bec.gain import intersected_areas, knowledge_gains
+from cfteach.bec.gain import gain_estimates, intersected_areas
 from cfteach.bec.rows import RowSet, reduce_and_measure, reduce_sets
 from cfteach.geometry import Region
 from cfteach.parallel import Executor, ParallelConfig
@@ -78,7 +78,7 @@ def _per_set(executor: Executor, fn: Callable[[RowSet], np.ndarray], rowset: Row
 
 
 def _gains(rowset: RowSet, running: Region) -> np.ndarray:
-    return knowledge_gains(running, rowset)
+    return np.stack(gain_estimates(running, rowset), axis=1)  # [n, 2]: gain, error
 
 
 def _areas(rowset: RowSet, region: Region) -> np.ndarray:
@@ -91,14 +91,18 @@ def _touches(rowset: RowSet, feature: int) -> np.ndarray:
                      for d in range(rowset.n_demos)], dtype=bool)
 
 
-def gains(running: Region, joint: RowSet, executor: Executor | None) -> np.ndarray:
-    """`knowledge_gains(running, joint)` for every demo, on the executor's workers."""
+def gains(running: Region, joint: RowSet, executor: Executor | None
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """`gain_estimates(running, joint)` (gains, standard errors) for every demo, on the
+    executor's workers. A demo's estimate depends only on the belief, its rows and the
+    seed, never on the other demos of its chunk, so chunking changes nothing."""
     if executor is None:
-        return knowledge_gains(running, joint)
-    out = np.zeros(joint.n_demos)
+        return gain_estimates(running, joint)
+    out = np.zeros((joint.n_demos, 2))
     has = np.flatnonzero(joint.counts() > 0)
-    out[has] = _per_set(executor, partial(_gains, running=running), joint, has)
-    return out
+    if len(has):
+        out[has] = _per_set(executor, partial(_gains, running=running), joint, has)
+    return out[:, 0].copy(), out[:, 1].copy()
 
 
 def areas(region: Region, rowset: RowSet, executor: Executor | None) -> np.ndarray:
