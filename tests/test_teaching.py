@@ -317,3 +317,16 @@ def test_fewer_than_five_overlap_clusters_keep_the_extremes() -> None:
     assert level_clusters(3) == {"high": 0, "medium": 1, "low": 2}
     assert level_clusters(2) == {"high": 0, "medium": None, "low": 1}
     assert level_clusters(1) == {"high": None, "medium": None, "low": 0}
+
+
+def test_tests_json_does_not_depend_on_the_openmp_thread_count() -> None:
+    """k-means' centres used to differ in the last digits with the OpenMP threads, so a
+    machine with another core count (or a worker process) wrote different tests JSON."""
+    import sklearn.cluster  # noqa: F401 - loads the OpenMP runtime the limits must reach
+    from threadpoolctl import threadpool_limits
+
+    out = []
+    for threads in (1, 2):
+        with threadpool_limits(limits=threads, user_api="openmp"):
+            out.append(json.dumps(select_tests("delivery", seed=3).to_json(), sort_keys=True))
+    assert out[0] == out[1]

@@ -3,7 +3,6 @@ JSON, then every picture and the HTML report (`cfteach reproduce`)."""
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from collections.abc import Sequence
@@ -66,8 +65,7 @@ def reproduce(
         file=sys.stderr,
     )
     config = ParallelConfig(backend=backend, n_workers=workers, scheduler=scheduler)
-    job = partial(_teach_domain, profile=profile, seed=seed, conditions=tuple(conditions),
-                  threads=_native_threads())
+    job = partial(_teach_domain, profile=profile, seed=seed, conditions=tuple(conditions))
     with Executor(config) as ex:
         if len(loaded) > 1 and (backend != "local" or ex.n_workers > 1):
             bar.set_postfix_str(f"{len(loaded)} domains on {ex.n_workers} workers")
@@ -106,31 +104,12 @@ def reproduce(
     return results, index
 
 
-def _native_threads() -> int:
-    """The OpenMP/BLAS threads this process uses (their default: one per usable core)."""
-    env = os.environ.get("OMP_NUM_THREADS", "")
-    if env.isdigit() and int(env) > 0:
-        return int(env)
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else \
-        (os.cpu_count() or 1)
-
-
 def _teach_domain(domain: Any, *, profile: str, seed: int, conditions: tuple[str, ...],
-                  bar: Any = None, threads: int | None = None) -> tuple[str, DomainResults]:
+                  bar: Any = None) -> tuple[str, DomainResults]:
     """Every condition's curriculum and the tests of one domain (a name, a path or a
-    `Domain`), as JSON; module-level so a worker process can run it.
-
-    `threads`: run native code with this many threads, the parent's count. Worker pools
-    start their processes with one thread, and k-means' cluster centres (in the tests JSON)
-    differ in the last digits with the number of OpenMP threads.
+    `Domain`), as JSON; module-level so a worker process can run it (k-means runs on one
+    thread wherever it runs, `teaching.common.fit_kmeans`, so workers write the same JSON).
     """
-    if threads is not None:
-        import sklearn.cluster  # noqa: F401 - loads the OpenMP runtime the limit must reach
-        from threadpoolctl import threadpool_limits
-
-        with threadpool_limits(limits=threads):
-            return _teach_domain(domain, profile=profile, seed=seed, conditions=conditions,
-                                 bar=bar)
     from cfteach import domains as dom
     from cfteach import teaching
 

@@ -16,7 +16,6 @@ constraint set and that set's area ("BEC area", small = informative).
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
@@ -26,6 +25,7 @@ from cfteach.bec.rows import reduce_and_measure
 from cfteach.geometry import Region
 from cfteach.teaching.common import (
     DemoRecord,
+    fit_kmeans,
     masking_order,
     nonzero_counts,
     one_step_sets,
@@ -192,15 +192,11 @@ def _kmeans_pick(ds: DemoSet, pool: np.ndarray, n_pick: int, pool_size: int,
                  chosen: list[int], rng: np.random.Generator, seed: int) -> list[int]:
     """k-means on the pool's BEC areas, clusters 0, 2, ..., sample each, largest first,
     visual pick per cluster. Returns the picks (appends nothing to `chosen`)."""
-    from sklearn.cluster import KMeans
-
     areas = bec_areas(ds)[pool]
     n_clusters = min(2 * n_pick - 1, len(np.unique(areas)))
     if n_clusters < 1 or not len(pool):
         return []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        km = KMeans(n_clusters=n_clusters, random_state=seed, n_init=4).fit(areas[:, None])
+    km = fit_kmeans(areas[:, None], n_clusters, seed)
     order = np.argsort(km.cluster_centers_[:, 0])
     samples = []
     for c in order[::2][:n_pick]:

@@ -78,3 +78,21 @@ def tightened(belief: Region, rows: np.ndarray) -> Region:
     constraints can be reported as they are."""
     both = Region(np.vstack([belief.reduced(), rows]), dim=belief.dim)
     return Region(both.reduced(), dim=belief.dim)
+
+
+def fit_kmeans(x: np.ndarray, n_clusters: int, seed: int) -> object:
+    """scikit-learn's k-means (4 seeded starts) on one OpenMP thread.
+
+    Why one thread: its centres differ in the last digits with the number of OpenMP threads,
+    so a machine with another core count, or a worker process started with one thread,
+    would write different tests JSON. The data are a few thousand scalars; one thread is
+    as fast.
+    """
+    import warnings
+
+    from sklearn.cluster import KMeans
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="openmp"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return KMeans(n_clusters=n_clusters, random_state=seed, n_init=4).fit(x)

@@ -22,6 +22,7 @@ from cfteach.mdp.rollout import MAX_STEPS
 from cfteach.mdp.vi import tied_actions
 from cfteach.parallel import Executor
 from cfteach.teaching import distribute
+from cfteach.teaching.common import fit_kmeans
 from cfteach.teaching.records import TestRecord
 from cfteach.teaching.sampling import sample_models
 
@@ -110,8 +111,6 @@ def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
            human_models: int, unbounded: str | None = None,
            executor: Executor | None = None) -> dict[str, Any]:
     """Run Algorithm 2; returns the pieces a `TestSet` is made of."""
-    from sklearn.cluster import KMeans
-
     F = ds.F
     belief = Region(np.asarray(ds.domain.posterior, dtype=np.int64), dim=F)
     W = sample_models(ds.profile, belief.reduced(), human_models,
@@ -132,7 +131,7 @@ def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
     k = min(N_CLUSTERS, len(np.unique(x)))
     if k < 1:
         raise ValueError("no candidate demonstrations left for tests")
-    km = KMeans(n_clusters=k, random_state=seed, n_init=4).fit(x)
+    km = fit_kmeans(x, k, seed)
     order = np.argsort(km.cluster_centers_[:, 0])
     rank = np.empty(k, dtype=np.int64)
     rank[order] = np.arange(k)
