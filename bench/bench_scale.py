@@ -130,10 +130,12 @@ def profile_run(size: str, top: int) -> None:
         "one-step constraint sets (masking order)": "common.py:one_step_sets",
         "counterfactual rows (all chunks)": "constraints.py:counterfactual_rowset",
         "  human-model planning (VI + best tied mu)": "constraints.py:human_mu_batch",
-        "knowledge gains": "gain.py:knowledge_gains",
+        "knowledge gains (estimates and their errors)": "gain.py:gain_estimates",
+        "  shared-sample fractions (> 3 features)": "region.py:intersection_fractions",
+        "  refining the contenders (refine_top)": "gain.py:refine_top",
         "feature-mask checks (blocked)": "counterfactual.py:blocked",
         "> 3-feature volume estimates (area_nd)": "_highdim.py:area_nd",
-        "LP filters (_lp_filter)": "_highdim.py:_lp_filter",
+        "redundancy filter (_lp_filter)": "_highdim.py:_lp_filter",
         "tie-breaks (visual simplicity)": "visual.py:tie_break",
     }
     cum: dict[str, float] = {}
