@@ -146,6 +146,19 @@ def loop_rows(batch: MDPBatch, W: np.ndarray, env: np.ndarray, model: np.ndarray
     return out
 
 
+def _cf_settings(ds: DemoSet, W: np.ndarray, method: str | None, reference_ties: bool | None,
+                 unbounded: str | None) -> tuple[np.ndarray, str, bool, str, tuple]:
+    """The counterfactual settings with the profile's defaults filled in, and their cache key."""
+    W = np.atleast_2d(np.asarray(W, dtype=float))
+    method = VI_METHOD[ds.profile] if method is None else method
+    if reference_ties is None:
+        reference_ties = ds.profile == "reference"
+    unbounded = check_unbounded(DEFAULT_UNBOUNDED[ds.profile] if unbounded is None
+                                else unbounded)
+    return W, method, reference_ties, unbounded, (W.tobytes(), W.shape, method,
+                                                  reference_ties, unbounded)
+
+
 def counterfactual_rows(ds: DemoSet, W: np.ndarray, *, method: str | None = None,
                         reference_ties: bool | None = None, unbounded: str | None = None,
                         ) -> tuple[RowSet, np.ndarray, np.ndarray]:
@@ -157,13 +170,8 @@ def counterfactual_rows(ds: DemoSet, W: np.ndarray, *, method: str | None = None
     (the reference's rule), ``"loops"`` its positive loops (`loop_rows`); default: the
     profile's rule (`DEFAULT_UNBOUNDED`).
     """
-    W = np.atleast_2d(np.asarray(W, dtype=float))
-    method = VI_METHOD[ds.profile] if method is None else method
-    if reference_ties is None:
-        reference_ties = ds.profile == "reference"
-    unbounded = check_unbounded(DEFAULT_UNBOUNDED[ds.profile] if unbounded is None
-                                else unbounded)
-    key = (W.tobytes(), W.shape, method, reference_ties, unbounded)
+    W, method, reference_ties, unbounded, key = _cf_settings(ds, W, method, reference_ties,
+                                                             unbounded)
     memo = ds.cache.setdefault("counterfactual", {})
     if key in memo:
         return memo[key]
@@ -311,13 +319,8 @@ def counterfactual_rowset(ds: DemoSet, W: np.ndarray, *, method: str | None = No
     (`budget` instance-state-model triples), not with the number of demos. With a
     `cfteach.parallel.Executor`, the chunks run on its workers.
     """
-    W = np.atleast_2d(np.asarray(W, dtype=float))
-    method = VI_METHOD[ds.profile] if method is None else method
-    if reference_ties is None:
-        reference_ties = ds.profile == "reference"
-    unbounded = check_unbounded(DEFAULT_UNBOUNDED[ds.profile] if unbounded is None
-                                else unbounded)
-    key = (W.tobytes(), W.shape, method, reference_ties, unbounded)
+    W, method, reference_ties, unbounded, key = _cf_settings(ds, W, method, reference_ties,
+                                                             unbounded)
     memo = ds.cache.setdefault("counterfactual_rowset", {})
     if key in memo:
         return memo[key]
