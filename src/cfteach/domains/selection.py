@@ -65,10 +65,15 @@ def subset(domain: Domain, envs: Iterable[int | str | tuple[int, ...] | list[int
     return SubsetDomain(**base, parent=parent, env_indices=tuple(chosen))
 
 
+def _family_size(domain: Domain) -> int:
+    """How many environments the whole family has (a subset's parent counts them all)."""
+    return len(domain.parent.instances() if isinstance(domain, SubsetDomain)
+               else domain.instances())
+
+
 def _index_of(item: int | str | tuple[int, ...] | list[int], domain: Domain,
               shown: str) -> int:
-    n = len(domain.parent.instances() if isinstance(domain, SubsetDomain)
-            else domain.instances())
+    n = _family_size(domain)
     bits = domain.n_bits
     if isinstance(item, bool):
         raise EnvSelectionError(f"environment {shown}: not an index or env code")
@@ -110,8 +115,7 @@ _SLICE = re.compile(r"(\d*):(\d*)(?::(\d*))?")
 
 def parse_envs(text: str, domain: Domain) -> list[int]:
     """The sorted original indices a ``--envs`` string selects (see the module doc)."""
-    n = len(domain.parent.instances() if isinstance(domain, SubsetDomain)
-            else domain.instances())
+    n = _family_size(domain)
     if not text.strip():
         raise EnvSelectionError("the selection is empty: give indices, env codes or a slice "
                                 "such as 0::16")
