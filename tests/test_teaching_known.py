@@ -22,18 +22,18 @@ TAXI = ROOT / "examples" / "domains" / "augmented_taxi_2021.toml"
 POLICY_2021 = {(1, 5, 11), (-1, -6, -9)}
 
 
-def _grid(sl: KnownSlice) -> tuple[np.ndarray, float]:
+def _grid(sl: KnownSlice, fine: bool = True) -> tuple[np.ndarray, float]:
     """Whole weight vectors on a fine grid of the slice, and each point's share of the
     measure (the perimeter for the edge, the diamond's area for the ball)."""
     r = sl.radius
     if sl.measure == "edge":
-        n = 100_000
+        n = 100_000 if fine else 20_000
         sq = np.array([[r, 0.0], [0.0, r], [-r, 0.0], [0.0, -r]])
         s = (np.arange(n) + 0.5) / n
         u = np.vstack([sq[j] + s[:, None] * (sq[(j + 1) % 4] - sq[j]) for j in range(4)])
         cell = r * math.sqrt(2) / n
     else:
-        n = 2001
+        n = 2001 if fine else 401
         x = (np.arange(n) + 0.5) / n * 2 * r - r
         u = np.stack(np.meshgrid(x, x, indexing="ij"), axis=-1).reshape(-1, 2)
         u = u[np.abs(u).sum(axis=1) <= r]
@@ -211,3 +211,37 @@ def test_slice_pictures_draw_arcs_and_polygons() -> None:
             area = 0.5 * abs(float(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
             assert area == pytest.approx(truth, rel=0.03)
         assert "known: Step = -0.0333" in ax.get_title()
+
+
+@pytest.mark.parametrize(("envs", "n_differ"), [(":16", 82), ("0::16", 41)])
+def test_edge_and_ball_one_step_sets_differ_by_interior_rows(envs: str, n_differ: int) -> None:
+    """Where the measures agree the reductions agree: the edge's (2021) and the ball's one-step
+    sets differ only by one row that cuts the ball's interior but not its edge (checked on
+    grids of both). The counts are the 82 + 41 candidates of the earlier candidate-by-
+    candidate comparison with the 2021 code, whose sets lacked exactly such a row."""
+    from cfteach.bec.demos import demo_set
+    from cfteach.domains import subset
+    from cfteach.teaching import known
+
+    dom = subset(load(TAXI), envs)
+    ds = demo_set(dom, "default")
+    ball = KnownSlice.make(dom.weights_raw, [2], "ball")
+    edge = KnownSlice.make(dom.weights_raw, [2], "edge")
+    sb, se = known.one_step_sets(ds, ball), known.one_step_sets(ds, edge)
+    pts_e, _ = _grid(edge, fine=False)
+    pts_b, _ = _grid(ball, fine=False)
+    differ = 0
+    for d in range(ds.D):
+        b = {tuple(r) for r in sb[d].tolist()}
+        e = {tuple(r) for r in se[d].tolist()}
+        if b == e:
+            continue
+        differ += 1
+        assert e < b and len(b - e) == 1
+        extra = np.array(next(iter(b - e)), dtype=float)
+        rest = np.array(sorted(e), dtype=float).reshape(-1, 3)
+        on_e = (pts_e @ rest.T >= 0).all(axis=1) if len(rest) else np.ones(len(pts_e), bool)
+        on_b = (pts_b @ rest.T >= 0).all(axis=1) if len(rest) else np.ones(len(pts_b), bool)
+        assert (pts_e[on_e] @ extra >= -1e-9).all()  # the edge never feels it
+        assert (pts_b[on_b] @ extra < 0).any()  # the ball's interior does
+    assert differ == n_differ
