@@ -136,8 +136,9 @@ def masked_gains(joint: RowSet, gains_all: np.ndarray, feature: int, proportion:
     """
     live = np.flatnonzero(gains_all > 1)
     gains = gains_all.copy()
+    on_slice = {} if sl is None else {"sl": sl}
     if proportion != 1:
-        gains[live[blocked(joint, live, feature, executor, sl)]] = 0.0
+        gains[live[blocked(joint, live, feature, executor, **on_slice)]] = 0.0
         return gains
     order = live[np.argsort(-gains_all[live], kind="stable")]
     done, step, top = 0, _MASK_FIRST, None
@@ -151,7 +152,7 @@ def masked_gains(joint: RowSet, gains_all: np.ndarray, feature: int, proportion:
             floor = top - _MASK_MARGIN * max(1.0, abs(top))
             rest = order[done:]
             block = rest[upper[rest] >= floor]
-        held = blocked(joint, block, feature, executor, sl)
+        held = blocked(joint, block, feature, executor, **on_slice)
         gains[block[held]] = 0.0
         if top is not None:
             break
@@ -216,8 +217,9 @@ def counterfactual_curriculum(
             mask = masks[mask_i]
             gains = gains_all
             if mask is not None:
+                on_slice = {} if sl is None else {"sl": sl}
                 gains = masked_gains(joint, gains_all, mask, proportion, executor,
-                                     errors=errors_all, sl=sl)
+                                     errors=errors_all, **on_slice)
             if sl is None:
                 gains = refine_top(running, joint, gains, errors_all)  # > 3 features only
             cands = candidate_set(ds.profile, gains, proportion, consistent)
