@@ -245,3 +245,23 @@ def test_edge_and_ball_one_step_sets_differ_by_interior_rows(envs: str, n_differ
         assert (pts_e[on_e] @ extra >= -1e-9).all()  # the edge never feels it
         assert (pts_b[on_b] @ extra < 0).any()  # the ball's interior does
     assert differ == n_differ
+
+
+@pytest.mark.parametrize("cmd", [
+    ["reproduce", "--domains", str(TAXI), "--no-report", "--known", "speed", "--out", "{tmp}"],
+    ["simulate", "--domains", str(TAXI), "--known", "speed", "--out", "{tmp}"],
+    ["study", "init", "--domains", str(TAXI), "--known", "speed", "--out", "{tmp}"],
+])
+def test_known_is_checked_before_any_work(cmd: list[str], tmp_path: Path) -> None:
+    args = [a.replace("{tmp}", str(tmp_path / "out")) for a in cmd]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert "--known" in res.output and "'speed'" in res.output
+    assert "Traceback" not in res.output
+    assert not (tmp_path / "out" / "augmented_taxi_2021").exists()
+
+
+def test_study_init_known_needs_teaching_here(tmp_path: Path) -> None:
+    res = runner.invoke(app, ["study", "init", "--toy", "--known", "step",
+                              "--out", str(tmp_path / "s")])
+    assert res.exit_code == 2 and "--known applies when teaching here" in res.output
