@@ -265,3 +265,27 @@ def test_study_init_known_needs_teaching_here(tmp_path: Path) -> None:
     res = runner.invoke(app, ["study", "init", "--toy", "--known", "step",
                               "--out", str(tmp_path / "s")])
     assert res.exit_code == 2 and "--known applies when teaching here" in res.output
+
+
+def test_report_draws_the_slice_and_says_what_is_known(tmp_path: Path) -> None:
+    """A report of curricula taught with the step known: a 2-D slice picture per condition
+    (not a sphere) and a line naming the known weight and the measure."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from PIL import Image
+
+    from cfteach.report import build_report
+    from cfteach.report.build import DomainResults, default_layouts
+    from cfteach.teaching import teach
+
+    dom = load(TAXI)
+    cur = teach(dom, "baseline", known=["step"], envs=":4", max_demos=2,
+                profile="reference").to_json()
+    res = {dom.name: DomainResults(curricula={"baseline": cur})}
+    index = build_report(tmp_path, res, layouts=default_layouts({dom.name: dom}),
+                         progress=False)
+    html = index.read_text()
+    assert "known weights" in html and "edge of the L1 ball" in html
+    img = next(tmp_path.rglob("baseline-belief.png"))
+    assert Image.open(img).size == (420, 420)  # the slice figure's size, not the sphere's

@@ -337,6 +337,7 @@ def build_report(
                 "areas": areas_src,
                 "tests": tests_view,
                 "key": _legend(name, every, layout_of),
+                "known": (first.get("settings") or {}).get("known"),
             }
         )
     bar.close()
