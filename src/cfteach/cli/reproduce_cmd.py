@@ -54,6 +54,11 @@ def reproduce(
         str | None, typer.Option(help="Dask scheduler / Ray address (default: start a local "
                                       "cluster).")
     ] = None,
+    known: Annotated[
+        str | None, typer.Option("--known", help="Features whose weight the learner is told, "
+                                                 "comma-separated (e.g. step; 'none': none); "
+                                                 "default: each domain file's [beliefs] known.")
+    ] = None,
 ) -> None:
     """Run every condition and test selection for the domains; write JSON, pictures and a
     self-contained index.html report."""
@@ -79,11 +84,18 @@ def reproduce(
     check_parallel(backend, workers, scheduler)
     check_out_dir(out)
     for name in split_list(domains) or []:  # every check before hours of work
-        load_domain(name, force=force, sphere=not no_report)
+        loaded = load_domain(name, force=force, sphere=not no_report)
+        if known is not None:
+            from cfteach.teaching.known import known_names
+
+            try:
+                known_names(loaded, known)
+            except ValueError as exc:
+                fail(f"--known: {exc}")
     try:
         results, index = run(out, split_list(domains), profile=profile, seed=seed,
                              report=not no_report, backend=backend, workers=workers,
-                             scheduler=scheduler)
+                             scheduler=scheduler, known=known)
     except (ValueError, FileNotFoundError) as exc:
         typer.echo(f"Error: {exc}", err=True)
         raise typer.Exit(2) from exc

@@ -57,6 +57,9 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("out/simulate"), "--out", "-o", help="Output folder."),
         force: bool = typer.Option(False, "--force", help="Go on even when a domain's size "
                                    "estimate exceeds the free memory."),
+        known: str = typer.Option(None, "--known", help="Features whose weight the learner is "
+                                  "told, comma-separated (e.g. step; 'none': none); default: "
+                                  "each domain file's [beliefs] known."),
     ) -> None:
         """Teach simulated learners every condition's curriculum and test them: proportion
         optimal by difficulty x condition (95% CIs) and the H1 overlap-correctness
@@ -68,7 +71,15 @@ def register(app: typer.Typer) -> None:
 
         check_out_dir(out)  # before the work: a bad --out must not cost the whole sweep
         for name in split_list(domains) or []:  # the domain checks and the size guard
-            load_domain(name, force=force)
+            loaded = load_domain(name, force=force)
+            if known is not None:
+                from cfteach.cli._common import fail
+                from cfteach.teaching.known import known_names
+
+                try:
+                    known_names(loaded, known)
+                except ValueError as exc:
+                    fail(f"--known: {exc}")
         try:
             settings = _teacher_settings(split_list(teacher))
             result = run_sweep(
@@ -77,7 +88,7 @@ def register(app: typer.Typer) -> None:
                 include_candidates=candidates, source=source, profile=profile,
                 human_models=human_models, seed=seed, backend=backend, n_workers=workers,
                 scheduler=scheduler, chunk_learners=chunk, progress=sys.stderr.isatty(),
-                teacher=settings)
+                teacher=settings, known=known)
         except (ValueError, FileNotFoundError, ImportError, ConnectionError) as err:
             typer.echo(f"Error: {err}", err=True)
             raise typer.Exit(2) from None

@@ -83,6 +83,10 @@ def init(
     force: bool = typer.Option(False, "--force", help="Replace study.json even when the "
                                "folder's study.db holds sessions; teach a domain whose size "
                                "estimate exceeds the free memory."),
+    known: str | None = typer.Option(None, "--known", help="When generating: features whose "
+                                     "weight the learner is told, comma-separated (e.g. step; "
+                                     "'none': none); default: each domain file's [beliefs] "
+                                     "known."),
 ) -> None:
     """Write a study folder (study.json) from curricula and test sets."""
     from cfteach.cli._common import check_out_dir, fail, study_sessions
@@ -112,7 +116,16 @@ def init(
         from cfteach.cli._common import load_domain
 
         for name in names:
-            load_domain(name, force=force)
+            loaded = load_domain(name, force=force)
+            if known is not None:
+                from cfteach.teaching.known import known_names
+
+                try:
+                    known_names(loaded, known)
+                except ValueError as e:
+                    fail(f"--known: {e}")
+    elif known is not None:
+        fail("--known applies when teaching here (not with --toy, --preview or --from)")
     try:
         if toy:
             sources = toy_sources()
@@ -121,7 +134,8 @@ def init(
         elif source is not None:
             sources = _sources_from_dir(source, names, chosen)
         else:
-            sources = teaching_sources(names, profile=profile, seed=seed, progress=True)
+            sources = teaching_sources(names, profile=profile, seed=seed, progress=True,
+                                       known=known)
         path = init_study(out, sources, title=title, completion_code=completion_code,
                           screened_out_code=screened_out_code, no_consent_code=no_consent_code,
                           completion_url=completion_url,

@@ -28,6 +28,24 @@ _UNBOUNDED_HELP = ("Human models with unbounded values: skip (give nothing, the 
                    "profile).")
 
 
+_KNOWN_HELP = ("Features whose weight the learner is told, comma-separated (e.g. step; "
+               "'none': none): beliefs live on that slice (docs/teaching.md). Default: the "
+               "domain file's [beliefs] known.")
+
+
+def _known_of(dom: Any, known: str | None) -> tuple[str, ...] | None:
+    """--known checked against the domain (one line naming the problem), or None."""
+    if known is None:
+        return None
+    from cfteach.teaching.known import known_names
+
+    try:
+        return known_names(dom, known)
+    except ValueError as exc:
+        fail(f"--known: {exc}")
+    return None  # pragma: no cover - fail exits
+
+
 _FORCE_HELP = "Go on even when the size estimate exceeds the free memory."
 _BACKEND_HELP = ("Where each round's planning and geometry run: local, dask or ray "
                  "(docs/parallel.md); the result is the same.")
@@ -117,6 +135,7 @@ def register(app: typer.Typer) -> None:
         backend: Annotated[str, typer.Option(help=_BACKEND_HELP)] = "local",
         workers: Annotated[int | None, typer.Option(help=_WORKERS_HELP)] = None,
         scheduler: Annotated[str | None, typer.Option(help=_SCHEDULER_HELP)] = None,
+        known: Annotated[str | None, typer.Option("--known", help=_KNOWN_HELP)] = None,
     ) -> None:
         """Choose the demonstrations one study condition shows; print the curriculum JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -142,8 +161,9 @@ def register(app: typer.Typer) -> None:
         check_parallel(backend, workers, scheduler)
         check_out_file(out)
         dom = load_domain(domain, force=force, envs=envs)
+        known_list = _known_of(dom, known)
         try:
-            cur = teach(dom, condition, profile=profile, seed=seed,
+            cur = teach(dom, condition, profile=profile, seed=seed, known=known_list,
                         human_models=human_models, max_demos=max_demos,
                         proportion=proportion, unbounded_models=unbounded_models,
                         progress=sys.stderr.isatty(), envs=_envs_of(dom, envs),
@@ -180,6 +200,7 @@ def register(app: typer.Typer) -> None:
         backend: Annotated[str, typer.Option(help=_BACKEND_HELP)] = "local",
         workers: Annotated[int | None, typer.Option(help=_WORKERS_HELP)] = None,
         scheduler: Annotated[str | None, typer.Option(help=_SCHEDULER_HELP)] = None,
+        known: Annotated[str | None, typer.Option("--known", help=_KNOWN_HELP)] = None,
     ) -> None:
         """Pick low / medium / high difficulty tests (Algorithm 2); print the tests JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -205,8 +226,10 @@ def register(app: typer.Typer) -> None:
                 fail(f"--training {path}: not JSON ({exc.msg} at line {exc.lineno}); "
                      "expected a curriculum written by `cfteach teach`")
         dom = load_domain(domain, force=force, envs=envs)
+        known_list = _known_of(dom, known)
         try:
             ts = select_tests(dom, training=curricula, profile=profile, seed=seed,
+                              known=known_list,
                               per_level=per_level, human_models=human_models,
                               include_candidates=all_candidates,
                               unbounded_models=unbounded_models,

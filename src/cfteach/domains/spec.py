@@ -132,6 +132,7 @@ class DomainSpec:
     posterior: tuple[tuple[int, ...], ...]
     max_demos: int = DEFAULT_MAX_DEMOS  # [teaching] max_demos: demonstrations per curriculum
     action_specs: tuple[ActionSpec, ...] = ()  # one per action, same order as `actions`
+    known: tuple[str, ...] = ()  # [beliefs] known: features whose weight the learner knows
 
     def __post_init__(self) -> None:
         if not self.action_specs:
@@ -378,9 +379,10 @@ def parse_spec(data: Any, source: str = "<dict>") -> DomainSpec:
     if not math.isfinite(norm) or norm == 0.0:
         raise c.fail("features", "the weight vector has no finite unit direction")
 
-    b = c.table(top.get("beliefs", {}), "beliefs", {"prior", "posterior"})
+    b = c.table(top.get("beliefs", {}), "beliefs", {"prior", "posterior", "known"})
     prior = _constraints(c, b.get("prior", []), "beliefs.prior", len(features))
     posterior = _constraints(c, b.get("posterior", []), "beliefs.posterior", len(features))
+    known = _known(c, b.get("known", []), [f.name for f in features])
 
     t = c.table(top.get("teaching", {}), "teaching", {"max_demos"})
     max_demos = c.integer(t.get("max_demos", DEFAULT_MAX_DEMOS), "teaching.max_demos",
@@ -392,8 +394,24 @@ def parse_spec(data: Any, source: str = "<dict>") -> DomainSpec:
         actions=actions, walls=walls, cells=tuple(cell_sets.items()), agent_start=agent_start,
         cargo=cargo, consumables=tuple(consumables), goal_kind=goal_kind, goal=goal,
         variants=tuple(variants), features=tuple(features), prior=prior, posterior=posterior,
-        max_demos=max_demos, action_specs=action_specs,
+        max_demos=max_demos, action_specs=action_specs, known=known,
     )
+
+
+def _known(c: _Checker, value: Any, names: list[str]) -> tuple[str, ...]:
+    """`beliefs.known`: feature names whose weight the learner is told (at least one left)."""
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise c.fail("beliefs.known", "must be a list of feature names")
+    for j, v in enumerate(value):
+        if v not in names:
+            raise c.fail(f"beliefs.known[{j}]", f"unknown feature {v!r} (features: "
+                         f"{', '.join(names)})")
+        if v in value[:j]:
+            raise c.fail(f"beliefs.known[{j}]", f"feature {v!r} listed twice")
+    if len(value) >= len(names) - 1:
+        raise c.fail("beliefs.known", "leaves fewer than two unknown weights (nothing to "
+                     "teach on the slice)")
+    return tuple(value)
 
 
 def _actions(c: _Checker, value: Any, key: str) -> tuple[ActionSpec, ...]:

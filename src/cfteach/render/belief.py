@@ -485,9 +485,12 @@ def belief_area_series(curriculum: Mapping[str, Any]) -> tuple[list[int], list[f
     if prior is not None:
         try:
             from cfteach.geometry import Region
+            from cfteach.render.belief_slice import prior_measure
 
+            on_slice = prior_measure(curriculum)  # settings.known: the slice's measure
             xs.append(0)
-            ys.append(float(Region(np.asarray(prior, dtype=float)).area()))
+            ys.append(float(Region(np.asarray(prior, dtype=float)).area())
+                      if on_slice is None else on_slice)
         except Exception:  # the prior point is optional decoration
             xs, ys = [], []
     for i, demo in enumerate(curriculum.get("demos", []), start=1):
@@ -526,7 +529,9 @@ def plot_belief_areas(
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax.yaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("demonstrations shown")
-    ax.set_ylabel("belief area (sr)")
+    sliced = any((c.get("settings") or {}).get("known") for c in curricula.values())
+    ax.set_ylabel("belief measure on the known-weight slice" if sliced
+                  else "belief area (sr)")
     ax.xaxis.get_major_locator().set_params(integer=True)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, frameon=False)

@@ -217,6 +217,7 @@ def build_report(
 
     from cfteach.render import belief as bel
     from cfteach.render import save_demo
+    from cfteach.render.belief_slice import belief_picture
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -276,13 +277,8 @@ def build_report(
                     }
                 )
             sphere = f"{cond}-belief.png"
-            fig = bel.plot_belief_sphere(
-                cur["final_belief"]["constraints"],
-                w_true=cur["weights"],
-                feature_names=labels,
-                title=f"{cond}: final belief",
-                resolution=sphere_resolution,
-            )
+            fig = belief_picture(cur["final_belief"]["constraints"], data=cur, labels=labels,
+                                 title=f"{cond}: final belief", resolution=sphere_resolution)
             bel.save_figure(fig, img / sphere)
             bar.update()
             area = cur["final_belief"].get("area")
@@ -318,11 +314,9 @@ def build_report(
             tests_view = _tests_view(name, res.tests, img, rel, layout_of, test_cell_px, bar)
             for level, info in tests_view["levels"].items():
                 if info["tests"]:
-                    fig = bel.plot_belief_sphere(
-                        res.tests["belief"]["constraints"],
+                    fig = belief_picture(
+                        res.tests["belief"]["constraints"], data=res.tests, labels=labels,
                         bec=info["tests"][0]["constraints"],
-                        w_true=res.tests["weights"],
-                        feature_names=labels,
                         title=f"{level}: belief vs first test's BEC",
                         resolution=sphere_resolution,
                     )
@@ -343,6 +337,7 @@ def build_report(
                 "areas": areas_src,
                 "tests": tests_view,
                 "key": _legend(name, every, layout_of),
+                "known": (first.get("settings") or {}).get("known"),
             }
         )
     bar.close()

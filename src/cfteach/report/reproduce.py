@@ -32,13 +32,15 @@ def reproduce(
     backend: str = "local",
     workers: int | None = 1,
     scheduler: str | None = None,
+    known: Sequence[str] | str | None = None,
 ) -> tuple[dict[str, DomainResults], Path | None]:
     """Teach every condition and select tests for each domain; write JSON, pictures, report.
 
     Returns the results and the path of `index.html` (None with `report=False`).
     `backend`/`workers`/`scheduler` (`cfteach.parallel`): with more than one worker the
     domains are taught side by side, one domain per task (the same JSON as one process);
-    `workers=None` uses every local core.
+    `workers=None` uses every local core. `known`: features whose weight every learner is
+    told (as `teaching.teach`; None: each domain file's ``[beliefs] known``).
     """
     from tqdm.auto import tqdm
 
@@ -65,7 +67,13 @@ def reproduce(
         file=sys.stderr,
     )
     config = ParallelConfig(backend=backend, n_workers=workers, scheduler=scheduler)
-    job = partial(_teach_domain, profile=profile, seed=seed, conditions=tuple(conditions))
+    if known is not None:  # every domain must have these features: a named error before work
+        from cfteach.teaching.known import known_names
+
+        for d in loaded.values():
+            known_names(d, known)
+    job = partial(_teach_domain, profile=profile, seed=seed, conditions=tuple(conditions),
+                  known=known)
     with Executor(config) as ex:
         if len(loaded) > 1 and (backend != "local" or ex.n_workers > 1):
             bar.set_postfix_str(f"{len(loaded)} domains on {ex.n_workers} workers")
@@ -77,7 +85,7 @@ def reproduce(
         else:
             for domain in loaded.values():
                 res = _teach_domain(domain, profile=profile, seed=seed,
-                                    conditions=tuple(conditions), bar=bar)[1]
+                                    conditions=tuple(conditions), bar=bar, known=known)[1]
                 results[domain.name] = res
                 write_results(out, {domain.name: res})  # keep what is done if a later fails
     bar.close()
@@ -89,6 +97,8 @@ def reproduce(
         "profile": profile,
         "seed": seed,
         "seconds": seconds,
+        **({"known": known if isinstance(known, str) else list(known)}
+           if known is not None else {}),
         # user domains: where to find their files again (report-only rebuilds)
         "domain_files": {
             d.name: str(Path(d.source).resolve())
@@ -105,7 +115,8 @@ def reproduce(
 
 
 def _teach_domain(domain: Any, *, profile: str, seed: int, conditions: tuple[str, ...],
-                  bar: Any = None) -> tuple[str, DomainResults]:
+                  bar: Any = None, known: Sequence[str] | str | None = None
+                  ) -> tuple[str, DomainResults]:
     """Every condition's curriculum and the tests of one domain (a name, a path or a
     `Domain`), as JSON; module-level so a worker process can run it (k-means runs on one
     thread wherever it runs, `teaching.common.fit_kmeans`, so workers write the same JSON).
@@ -120,14 +131,15 @@ def _teach_domain(domain: Any, *, profile: str, seed: int, conditions: tuple[str
     for cond in conditions:
         if bar is not None:
             bar.set_postfix_str(f"{domain.name}: {cond}")
-        cur = teaching.teach(domain, cond, profile=profile, seed=seed)
+        cur = teaching.teach(domain, cond, profile=profile, seed=seed, known=known)
         trained.append(cur)
         res.curricula[cond] = cur.to_json()
         if bar is not None:
             bar.update()
     if bar is not None:
         bar.set_postfix_str(f"{domain.name}: tests")
-    tests = teaching.select_tests(domain, training=tuple(trained), profile=profile, seed=seed)
+    tests = teaching.select_tests(domain, training=tuple(trained), profile=profile, seed=seed,
+                                  known=known)
     res.tests = tests.to_json()
     if bar is not None:
         bar.update()

@@ -109,13 +109,14 @@ def _teach_chunk(chunk: dict[str, Any]) -> Material:
     objects = []
     for cond in chunk["conditions"]:
         cur = teaching.teach(dom, cond, profile=chunk["profile"], seed=chunk["seed"],
-                             human_models=chunk["human_models"])
+                             human_models=chunk["human_models"], known=chunk.get("known"))
         objects.append(cur)
         curricula[cond] = cur.to_json()
     tests = teaching.select_tests(dom, training=tuple(objects), profile=chunk["profile"],
                                   seed=chunk["seed"], per_level=chunk["per_level"],
                                   human_models=chunk["human_models"],
-                                  include_candidates=chunk["include_candidates"])
+                                  include_candidates=chunk["include_candidates"],
+                                  known=chunk.get("known"))
     return Material(chunk["domain"], chunk["seed"], curricula, tests.to_json(),
                     time.perf_counter() - t0)
 
@@ -123,14 +124,15 @@ def _teach_chunk(chunk: dict[str, Any]) -> Material:
 def teach_material(domains: list[str | tuple], conditions: list[str], seeds: list[int], *,
                    profile: str = "default", human_models: int = 8, per_level: int = 6,
                    include_candidates: bool = False, executor=None,
-                   progress: bool = False) -> list[Material]:
+                   progress: bool = False, known: str | None = None) -> list[Material]:
     """Run `cfteach.teaching` for every (domain, seed) in parallel chunks."""
     from cfteach.parallel import map_chunks
 
     taught = [c for c in conditions if c not in (NO_TEACHING, CLOSED_LOOP)]
     chunks = [{"domain": d, "seed": s, "conditions": taught, "profile": profile,
                "human_models": human_models, "per_level": per_level,
-               "include_candidates": include_candidates} for d in domains for s in seeds]
+               "include_candidates": include_candidates, "known": known}
+              for d in domains for s in seeds]
     return map_chunks(_teach_chunk, chunks, progress=progress, desc="teaching",
                       executor=executor)
 
@@ -422,7 +424,8 @@ def check_teacher(teacher: dict[str, Any]) -> None:
 
 
 def equal_budget_override(material: list[Material], result: SweepResult, *, profile: str,
-                          human_models: int) -> dict[tuple[str, int, str, str], list]:
+                          human_models: int, known: str | None = None
+                          ) -> dict[tuple[str, int, str, str], list]:
     """The `proposed_equal_budget` demonstrations per (domain, seed, learner model): the
     `proposed` curriculum capped at closed-loop's mean demonstrations + feedback for that
     learner model, repeated from the start when it stops early (blind repetition)."""
@@ -439,7 +442,7 @@ def equal_budget_override(material: list[Material], result: SweepResult, *, prof
         if (label, mseed, cap) not in taught:
             taught[(label, mseed, cap)] = teaching.teach(
                 load_domain(mat.domain), "proposed", profile=profile, seed=mseed,
-                human_models=human_models, max_demos=cap).to_json()
+                human_models=human_models, max_demos=cap, known=known).to_json()
         out[(label, int(mseed), EQUAL_BUDGET, str(model))] = equal_budget_demos(
             taught[(label, mseed, cap)], cap)
     return out
@@ -451,9 +454,12 @@ def run_sweep(domains: list[str], conditions: list[str] | None = None,
               profile: str = "default", human_models: int = 8, per_level: int = 6,
               seed: int = 0, backend: str = "local", n_workers: int | None = None,
               scheduler: str | None = None, chunk_learners: int = 16,
-              progress: bool = False, teacher: dict[str, Any] | None = None) -> SweepResult:
+              progress: bool = False, teacher: dict[str, Any] | None = None,
+              known: str | None = None) -> SweepResult:
     """The whole sweep behind `cfteach simulate`: teach (or read `source`), then simulate.
 
+    `known`: features whose weight the learners are told (`teaching.teach`; None: each
+    domain file's ``[beliefs] known``).
     `teacher`: `cfteach.closedloop.TeacherSettings` fields for ``closed_loop``."""
     from cfteach.parallel import Executor
 
@@ -479,7 +485,7 @@ def run_sweep(domains: list[str], conditions: list[str] | None = None,
             material = teach_material(refs, conditions, list(range(seeds)), profile=profile,
                                       human_models=human_models, per_level=per_level,
                                       include_candidates=include_candidates, executor=ex,
-                                      progress=progress)
+                                      progress=progress, known=known)
         t_teach = time.perf_counter() - t0
         common = {"n_learners": n_learners, "include_candidates": include_candidates,
                   "seed": seed, "chunk_learners": chunk_learners, "executor": ex,
@@ -489,7 +495,7 @@ def run_sweep(domains: list[str], conditions: list[str] | None = None,
         if CLOSED_LOOP in conditions:
             t1 = time.perf_counter()
             override = equal_budget_override(material, result, profile=profile,
-                                             human_models=human_models)
+                                             human_models=human_models, known=known)
             control = simulate(material, models, conditions=[EQUAL_BUDGET],
                                demos_override=override, **common)
             result = result.merged(control)

@@ -246,19 +246,20 @@ def browser_game(test: dict) -> dict:
 
 def teaching_sources(names: Iterable[str] = ("delivery", "tiles", "skateboard"), *,
                      profile: str = "default", seed: int = 0,
-                     progress: bool = False) -> list[DomainSource]:
+                     progress: bool = False, known: str | None = None) -> list[DomainSource]:
     """The paper's study material: a curriculum per condition (`cfteach.teaching.teach`)
-    and the domain's tests (`select_tests`, excluding every condition's demonstrations)."""
+    and the domain's tests (`select_tests`, excluding every condition's demonstrations).
+    `known`: as in `teach` (None: each domain file's ``[beliefs] known``)."""
     from cfteach.domains import load
     from cfteach.teaching import select_tests, teach
 
     out = []
     for name in names:
         dom = load(name)
-        curricula = {c: teach(dom, c, profile=profile, seed=seed, progress=progress)
-                     for c in CONDITIONS}
+        curricula = {c: teach(dom, c, profile=profile, seed=seed, progress=progress,
+                              known=known) for c in CONDITIONS}
         tests = select_tests(dom, training=tuple(curricula.values()), profile=profile,
-                             seed=seed, progress=progress)
+                             seed=seed, progress=progress, known=known)
         out.append(DomainSource(dom, {c: k.to_json() for c, k in curricula.items()},
                                 tests.to_json()))
     return out

@@ -14,7 +14,7 @@ feature scaffolding). Profiles: ``reference`` reproduces the authors' determinis
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 from cfteach.bec import DEFAULT_UNBOUNDED, check_unbounded, resolve_domain
@@ -28,6 +28,7 @@ from cfteach.teaching.common import (
     default_proportion,
 )
 from cfteach.teaching.distribute import one_step_cache, open_executor, parallel_config
+from cfteach.teaching.known import known_names, make_slice, settings_entry
 from cfteach.teaching.records import CURRICULUM_SCHEMA, TESTS_SCHEMA, Curriculum, TestSet
 
 __all__ = ["CONDITIONS", "CURRICULUM_SCHEMA", "PROFILES", "TESTS_SCHEMA", "Curriculum",
@@ -74,7 +75,8 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
           proportion: float | None = None, unbounded_models: str | None = None,
           progress: bool = False, envs: Any = None, backend: str = "local",
           workers: int | None = None, scheduler: str | None = None,
-          executor: Executor | None = None) -> Curriculum:
+          executor: Executor | None = None, known: Sequence[str] | str | None = None
+          ) -> Curriculum:
     """The curriculum one condition shows (see the module docstring).
 
     `unbounded_models`: what a human model with unbounded values in an instance contributes
@@ -86,6 +88,8 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
     `backend`/`workers`/`scheduler` (as in `cfteach.parallel`; `workers` None = 1 process
     for the local backend) or a live `executor` spread each round's planning and geometry
     over workers; the curriculum is identical to the one-process run (docs/parallel.md).
+    `known`: features whose weight the learner is told (None: the domain file's
+    ``[beliefs] known``); every belief then lives on that slice (`cfteach.teaching.known`).
     """
     check_condition(condition)
     config = parallel_config(backend, workers, scheduler, executor)
@@ -95,6 +99,7 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
     _check_int("seed", seed, 0)
     _check_int("human_models", human_models, 1)
     dom = _restrict(resolve_domain(domain), envs)
+    sl = make_slice(dom, known_names(dom, known), profile)
     ds = demo_set(dom, profile)
     k = ds.domain.max_demos if max_demos is None else _check_int("max_demos", max_demos, 1)
     p = default_proportion(profile, condition, dom.name) if proportion is None \
@@ -103,6 +108,8 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
                                 "unbounded_models": rule}
     if envs is not None:
         settings["envs"] = list(dom.env_indices)
+    if sl is not None:  # written only when some weight is known (older JSON unchanged)
+        settings["known"] = settings_entry(sl, dom)
     tick = _Ticker(progress, k, f"{dom.name} {condition}")
     try:
         if condition in ("counterfactual_only", "proposed"):
@@ -112,7 +119,7 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
                 records, final, log = counterfactual_curriculum(
                     ds, feature_scaffolding=condition == "proposed",
                     human_models=human_models, max_demos=k, proportion=p, seed=seed,
-                    unbounded=rule, tick=tick, executor=ex)
+                    unbounded=rule, tick=tick, executor=ex, sl=sl)
         else:
             from cfteach.teaching.baseline import baseline_curriculum
 
@@ -121,7 +128,8 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
             with open_executor(config, executor) as ex:
                 one_step_cache(ds, ex)  # the one costly, per-demo part
             records, final, log = baseline_curriculum(
-                ds, feature_scaffolding=condition == "feature_only", max_demos=k, seed=seed)
+                ds, feature_scaffolding=condition == "feature_only", max_demos=k, seed=seed,
+                sl=sl)
     finally:
         tick.close()
     return Curriculum(domain=dom, condition=condition, profile=profile, seed=seed,
@@ -134,10 +142,12 @@ def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
                  human_models: int = 8, include_candidates: bool = False,
                  unbounded_models: str | None = None, progress: bool = False,
                  envs: Any = None, backend: str = "local", workers: int | None = None,
-                 scheduler: str | None = None, executor: Executor | None = None) -> TestSet:
+                 scheduler: str | None = None, executor: Executor | None = None,
+                 known: Sequence[str] | str | None = None) -> TestSet:
     """Tests of low / medium / high difficulty (Algorithm 2), excluding training demos.
 
     `envs`: choose among these environments only (as for `teach`).
+    `known`: as in `teach` (the overlaps are then measured on the known-weight slice).
     `backend`/`workers`/`scheduler`/`executor`: as in `teach` (identical results).
     """
     from cfteach.teaching.testsel import select
@@ -150,12 +160,13 @@ def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
     _check_int("per_level", per_level, 0)
     _check_int("human_models", human_models, 1)
     dom = _restrict(resolve_domain(domain), envs)
+    sl = make_slice(dom, known_names(dom, known), profile)
     ds = demo_set(dom, profile)
     tick = _Ticker(progress, 1, f"{dom.name} tests")
     try:
         with open_executor(config, executor) as ex:
             parts = select(ds, training=list(training), seed=seed, per_level=per_level,
-                           human_models=human_models, unbounded=rule, executor=ex)
+                           human_models=human_models, unbounded=rule, executor=ex, sl=sl)
         tick("overlaps")
     finally:
         tick.close()
@@ -164,5 +175,7 @@ def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
                 "all_optimal_actions_cap": 50, "unbounded_models": rule}
     if envs is not None:
         settings["envs"] = list(dom.env_indices)
+    if sl is not None:
+        settings["known"] = settings_entry(sl, dom)
     return TestSet(domain=dom, profile=profile, seed=seed, settings=settings,
                    include_candidates=include_candidates, demo_set=ds, **parts)

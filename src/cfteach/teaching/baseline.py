@@ -16,6 +16,7 @@ constraint set and that set's area ("BEC area", small = informative).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -23,6 +24,8 @@ from cfteach.bec.constraints import one_action_rows
 from cfteach.bec.demos import DemoSet
 from cfteach.bec.rows import reduce_and_measure
 from cfteach.geometry import Region
+from cfteach.geometry.slice import KnownSlice
+from cfteach.teaching import known
 from cfteach.teaching.common import (
     DemoRecord,
     fit_kmeans,
@@ -53,10 +56,15 @@ def bec_areas(ds: DemoSet) -> np.ndarray:
     return ds.cache["bec_areas"]
 
 
-def scot(ds: DemoSet) -> list[int]:
-    """The SCOT demos, in ascending demo index."""
-    sets = one_step_sets(ds)
-    pol = Region(np.unique(one_action_rows(ds, first_step_only=True).rows, axis=0)).reduced()
+def scot(ds: DemoSet, sl: KnownSlice | None = None) -> list[int]:
+    """The SCOT demos, in ascending demo index (on the known-weight slice `sl`: its
+    policy-level constraints, covered by the one-step sets reduced on the slice)."""
+    if sl is None:
+        sets = one_step_sets(ds)
+        pol = Region(np.unique(one_action_rows(ds, first_step_only=True).rows,
+                               axis=0)).reduced()
+    else:
+        sets, pol = known.one_step_sets(ds, sl), known.policy_rows(ds, sl)
     having: dict[tuple[int, ...], list[int]] = {}
     for d in range(ds.D):
         for r in sets[d].tolist():
@@ -189,10 +197,12 @@ def _score(s: np.ndarray, pair_d, comp: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def _kmeans_pick(ds: DemoSet, pool: np.ndarray, n_pick: int, pool_size: int,
-                 chosen: list[int], rng: np.random.Generator, seed: int) -> list[int]:
-    """k-means on the pool's BEC areas, clusters 0, 2, ..., sample each, largest first,
-    visual pick per cluster. Returns the picks (appends nothing to `chosen`)."""
-    areas = bec_areas(ds)[pool]
+                 chosen: list[int], rng: np.random.Generator, seed: int,
+                 all_areas: np.ndarray | None = None) -> list[int]:
+    """k-means on the pool's BEC areas (`all_areas`, default `bec_areas`), clusters 0, 2,
+    ..., sample each, largest first, visual pick per cluster. Returns the picks (appends
+    nothing to `chosen`)."""
+    areas = (bec_areas(ds) if all_areas is None else all_areas)[pool]
     n_clusters = min(2 * n_pick - 1, len(np.unique(areas)))
     if n_clusters < 1 or not len(pool):
         return []
@@ -219,24 +229,33 @@ def _kmeans_pick(ds: DemoSet, pool: np.ndarray, n_pick: int, pool_size: int,
 
 
 def baseline_curriculum(ds: DemoSet, *, feature_scaffolding: bool, max_demos: int,
-                        seed: int) -> tuple[list[DemoRecord], Region, list[dict]]:
-    """`baseline` / `feature_only`. Returns (demos, final belief, log)."""
+                        seed: int, sl: KnownSlice | None = None,
+                        ) -> tuple[list[DemoRecord], Region, list[dict]]:
+    """`baseline` / `feature_only`. Returns (demos, final belief, log).
+
+    With a known-weight slice `sl`, sets, areas and beliefs are those of the slice
+    (`cfteach.teaching.known`) and the known features are never masked."""
     F = ds.F
     names = ds.domain.feature_names
-    sets = one_step_sets(ds)
-    areas = bec_areas(ds)
+    sets = one_step_sets(ds) if sl is None else known.one_step_sets(ds, sl)
+    areas = bec_areas(ds) if sl is None else known.measures(ds, sl)
+
+    def belief(rows: np.ndarray) -> Any:
+        return Region(rows, dim=F) if sl is None else sl.region(rows)
+
     rng = np.random.default_rng([seed, 5])
-    scot_demos = scot(ds)
+    scot_demos = scot(ds, sl)
     k = max(0, max_demos - len(scot_demos))
     pool = np.setdiff1d(np.arange(ds.D), scot_demos)
     chosen: list[int] = []
     masks_of: dict[int, str | None] = {}
     log: list[dict] = [{"scot": scot_demos, "slots": k}]
     if not feature_scaffolding:
-        chosen = _kmeans_pick(ds, pool, k, len(pool), chosen, rng, seed)
+        chosen = _kmeans_pick(ds, pool, k, len(pool), chosen, rng, seed, areas)
     else:
         counts = nonzero_counts([sets[int(d)] for d in pool], F)
-        masks: list[int | None] = [*masking_order(counts), None]
+        masks: list[int | None] = [*[m for m in masking_order(counts)
+                                     if sl is None or m not in sl.known], None]
         c = math.ceil(k / len(masks)) if k else 0
         quotas, left = [], k
         for _ in masks:
@@ -249,12 +268,12 @@ def baseline_curriculum(ds: DemoSet, *, feature_scaffolding: bool, max_demos: in
             want = q + carry
             if want <= 0:
                 continue
-            limit = Region(phase_rows, dim=F).area()
+            limit = belief(phase_rows).area()
             ok = [d for d in pool.tolist() if d not in chosen and areas[d] < limit
                   and (mask is None or not (len(sets[d]) and np.any(sets[d][:, mask] != 0)))]
             eligible = np.array(ok, dtype=np.int64)
             picks = _kmeans_pick(ds, eligible, min(want, len(eligible)), len(pool), chosen,
-                                 rng, seed) if len(eligible) else []
+                                 rng, seed, areas) if len(eligible) else []
             for d in picks:
                 masks_of[d] = None if mask is None else names[mask]
                 phase_rows = np.vstack([phase_rows, sets[d]])
@@ -264,7 +283,7 @@ def baseline_curriculum(ds: DemoSet, *, feature_scaffolding: bool, max_demos: in
             carry = want - len(picks)
     order = chosen + scot_demos
     records = []
-    running = Region(np.asarray(ds.domain.prior, dtype=np.int64), dim=F)
+    running = belief(np.asarray(ds.domain.prior, dtype=np.int64))
     for d in order:
         before = running.area()
         running = tightened(running, sets[d])

@@ -75,7 +75,10 @@ class DemoRecord:
 
 def tightened(belief: Region, rows: np.ndarray) -> Region:
     """The belief after also learning `rows` (``c . w >= 0``), kept irredundant so that its
-    constraints can be reported as they are."""
+    constraints can be reported as they are (on a known-weight slice: irredundant there)."""
+    if not isinstance(belief, Region):  # a geometry.slice.SliceRegion
+        both = belief.with_rows(rows)
+        return type(belief)(belief.slice, both.reduced())
     both = Region(np.vstack([belief.reduced(), rows]), dim=belief.dim)
     return Region(both.reduced(), dim=belief.dim)
 

@@ -20,8 +20,9 @@ from cfteach.bec.demos import DemoSet
 from cfteach.bec.gain import REFINE_Z, refine_top
 from cfteach.bec.rows import RowSet, reduce_sets
 from cfteach.geometry import Region
+from cfteach.geometry.slice import KnownSlice
 from cfteach.parallel import Executor
-from cfteach.teaching import distribute
+from cfteach.teaching import distribute, known
 from cfteach.teaching.common import (
     DemoRecord,
     masking_order,
@@ -98,14 +99,16 @@ def candidate_set(profile: str, gains: np.ndarray, proportion: float,
 
 
 def blocked(joint: RowSet, demos: np.ndarray, feature: int,
-            executor: Executor | None = None) -> np.ndarray:
-    """bool per demo in `demos`: some *reduced* joint constraint involves `feature`."""
+            executor: Executor | None = None, sl: KnownSlice | None = None) -> np.ndarray:
+    """bool per demo in `demos`: some *reduced* joint constraint involves `feature` (reduced
+    on the known-weight slice `sl` when given)."""
     out = np.zeros(len(demos), dtype=bool)
     touch = np.zeros(joint.n_demos, dtype=bool)
     touch[joint.demo[joint.rows[:, feature] != 0]] = True
     need = touch[demos]
     if need.any():
-        out[need] = distribute.touches(joint, demos[need], feature, executor)
+        out[need] = distribute.touches(joint, demos[need], feature, executor) if sl is None \
+            else known.touches(sl, joint, demos[need], feature)
     return out
 
 
@@ -117,7 +120,7 @@ _MASK_FIRST = 64  # demos checked first (then 4x as many each time, while all ar
 
 def masked_gains(joint: RowSet, gains_all: np.ndarray, feature: int, proportion: float,
                  executor: Executor | None = None, *, errors: np.ndarray | None = None,
-                 z: float = REFINE_Z) -> np.ndarray:
+                 z: float = REFINE_Z, sl: KnownSlice | None = None) -> np.ndarray:
     """`gains_all` with the demos held back by the mask on `feature` set to 0, as far as the
     selection can tell.
 
@@ -133,8 +136,9 @@ def masked_gains(joint: RowSet, gains_all: np.ndarray, feature: int, proportion:
     """
     live = np.flatnonzero(gains_all > 1)
     gains = gains_all.copy()
+    on_slice = {} if sl is None else {"sl": sl}
     if proportion != 1:
-        gains[live[blocked(joint, live, feature, executor)]] = 0.0
+        gains[live[blocked(joint, live, feature, executor, **on_slice)]] = 0.0
         return gains
     order = live[np.argsort(-gains_all[live], kind="stable")]
     done, step, top = 0, _MASK_FIRST, None
@@ -148,7 +152,7 @@ def masked_gains(joint: RowSet, gains_all: np.ndarray, feature: int, proportion:
             floor = top - _MASK_MARGIN * max(1.0, abs(top))
             rest = order[done:]
             block = rest[upper[rest] >= floor]
-        held = blocked(joint, block, feature, executor)
+        held = blocked(joint, block, feature, executor, **on_slice)
         gains[block[held]] = 0.0
         if top is not None:
             break
@@ -171,19 +175,25 @@ def counterfactual_curriculum(
     unbounded: str | None = None,
     tick: Callable[[str], None] | None = None,
     executor: Executor | None = None,
+    sl: KnownSlice | None = None,
 ) -> tuple[list[DemoRecord], Region, list[dict]]:
     """Run Algorithm 1. Returns (chosen demos, final belief, per-round log).
 
     With an `executor` (more than one worker), each round's planning and geometry run on
     its workers; the curriculum is the same bit for bit (`cfteach.teaching.distribute`).
+    With a known-weight slice `sl`, beliefs, human models, gains and reductions are the
+    slice's (`cfteach.teaching.known`; the counterfactual planning still uses the workers).
     """
     F = ds.F
     names = ds.domain.feature_names
-    running = Region(np.asarray(ds.domain.prior, dtype=np.int64), dim=F)
+    prior = np.asarray(ds.domain.prior, dtype=np.int64)
+    running = Region(prior, dim=F) if sl is None else sl.region(prior)
     if feature_scaffolding:
         distribute.one_step_cache(ds, executor)
-        counts = nonzero_counts(list(one_step_sets(ds).values()), F)
-        masks: list[int | None] = [*masking_order(counts), None]
+        sets = one_step_sets(ds) if sl is None else known.one_step_sets(ds, sl)
+        counts = nonzero_counts(list(sets.values()), F)
+        masks: list[int | None] = [*[m for m in masking_order(counts)
+                                     if sl is None or m not in sl.known], None]
     else:
         masks = [None]
     mask_i = 0
@@ -194,20 +204,24 @@ def counterfactual_curriculum(
     while len(chosen) < max_demos:
         # one stream per round index: the conditions share round 1's models for one seed
         model_rng = np.random.default_rng([seed, 1, len(chosen)])
-        W = sample_models(ds.profile, running.reduced(), human_models, model_rng, F)
+        W = sample_models(ds.profile, running.reduced(), human_models, model_rng, F) \
+            if sl is None else running.sample(human_models, model_rng)
         if not len(W):
             log.append({"round": len(chosen), "stop": "no human model inside the belief"})
             break
         joint, bounded = counterfactual_rowset(ds, W, unbounded=unbounded, executor=executor)
-        gains_all, errors_all = distribute.gains(running, joint, executor)  # errors 0 if F=3
+        gains_all, errors_all = distribute.gains(running, joint, executor) if sl is None \
+            else known.gains(running, joint)  # errors 0 if F=3 or on a slice
         cands: list[int] = []
         while True:
             mask = masks[mask_i]
             gains = gains_all
             if mask is not None:
+                on_slice = {} if sl is None else {"sl": sl}
                 gains = masked_gains(joint, gains_all, mask, proportion, executor,
-                                     errors=errors_all)
-            gains = refine_top(running, joint, gains, errors_all)  # > 3 features only
+                                     errors=errors_all, **on_slice)
+            if sl is None:
+                gains = refine_top(running, joint, gains, errors_all)  # > 3 features only
             cands = candidate_set(ds.profile, gains, proportion, consistent)
             if cands or mask is None:
                 break
@@ -225,7 +239,8 @@ def counterfactual_curriculum(
             break
         prev = chosen[-1].demo if chosen else None
         d = tie_break(ds, cands, prev, tie_rng)
-        C = reduce_sets(joint, np.array([d]))[d]
+        C = reduce_sets(joint, np.array([d]))[d] if sl is None \
+            else known.reduce_rowset(sl, joint, np.array([d]))[d]
         running = tightened(running, C)
         chosen.append(DemoRecord(demo=d, constraints=C, knowledge_gain=float(gains[d]),
                                  belief_area_after=running.area(),

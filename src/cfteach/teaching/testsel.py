@@ -18,10 +18,11 @@ from cfteach.bec.constraints import counterfactual_rowset, one_action_rows
 from cfteach.bec.demos import DemoSet
 from cfteach.bec.rows import reduce_sets
 from cfteach.geometry import Region
+from cfteach.geometry.slice import KnownSlice
 from cfteach.mdp.rollout import MAX_STEPS
 from cfteach.mdp.vi import tied_actions
 from cfteach.parallel import Executor
-from cfteach.teaching import distribute
+from cfteach.teaching import distribute, known
 from cfteach.teaching.common import fit_kmeans
 from cfteach.teaching.records import TestRecord
 from cfteach.teaching.sampling import sample_models
@@ -109,13 +110,24 @@ def overlaps_of(ds: DemoSet, belief: Region, W: np.ndarray,
 
 def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
            human_models: int, unbounded: str | None = None,
-           executor: Executor | None = None) -> dict[str, Any]:
-    """Run Algorithm 2; returns the pieces a `TestSet` is made of."""
+           executor: Executor | None = None, sl: KnownSlice | None = None
+           ) -> dict[str, Any]:
+    """Run Algorithm 2; returns the pieces a `TestSet` is made of. With a known-weight
+    slice `sl` the belief, its human models and the overlaps are the slice's."""
     F = ds.F
-    belief = Region(np.asarray(ds.domain.posterior, dtype=np.int64), dim=F)
-    W = sample_models(ds.profile, belief.reduced(), human_models,
-                      np.random.default_rng([seed, 3]), F)
-    overlaps, joint = overlaps_of(ds, belief, W, unbounded, executor)
+    post = np.asarray(ds.domain.posterior, dtype=np.int64)
+    belief: Any = Region(post, dim=F) if sl is None else sl.region(post)
+    rng3 = np.random.default_rng([seed, 3])
+    W = sample_models(ds.profile, belief.reduced(), human_models, rng3, F) if sl is None \
+        else belief.sample(human_models, rng3)
+    if sl is None:
+        overlaps, joint = overlaps_of(ds, belief, W, unbounded, executor)
+    else:
+        joint = one_action_rows(ds)
+        if len(W):
+            joint = joint.union(counterfactual_rowset(ds, W, unbounded=unbounded,
+                                                      executor=executor)[0])
+        overlaps = known.overlaps(belief, joint)
     excluded = training_keys(ds, training)
     pool_mask = np.ones(ds.D, dtype=bool)
     position = {inst.index: p for p, inst in enumerate(ds.batch.instances)}  # env_index -> e
@@ -143,7 +155,7 @@ def select(ds: DemoSet, *, training: Iterable[Any], seed: int, per_level: int,
         members = pool[clusters[pool] == c] if c is not None else np.zeros(0, dtype=np.int64)
         pick = rng.choice(members, size=min(per_level, len(members)), replace=False) \
             if len(members) else members
-        red = reduce_sets(joint, pick)
+        red = reduce_sets(joint, pick) if sl is None else known.reduce_rowset(sl, joint, pick)
         tests[level] = [TestRecord(demo=int(d), difficulty=level, overlap=float(overlaps[d]),
                                    constraints=red[int(d)],
                                    all_optimal_actions=all_optimal_actions(ds, int(d)))
