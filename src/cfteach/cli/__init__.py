@@ -7,8 +7,46 @@ import os
 import sys
 
 import typer
+from typer.core import TyperGroup
+
+from cfteach.cli._aliases import rewrite
+
+
+class _Group(TyperGroup):
+    """The root command: old option spellings become the current ones (docs/cli.md)."""
+
+    def main(self, args=None, *a, **kw):  # noqa: ANN001, ANN002, ANN003, ANN201
+        return super().main(rewrite(sys.argv[1:] if args is None else args), *a, **kw)
+
+
+def _no_broken_words() -> None:
+    """Help text wraps between words only: click's wrapper would cut a long word (a URL
+    default such as .../submissions/complete?cc=) in two at a narrow terminal."""
+    import importlib
+
+    for name in ("typer._click._textwrap", "click._textwrap"):  # typer's own copy, or click
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            continue
+        base = module.TextWrapper
+        if getattr(base, "_cfteach_whole_words", False):
+            continue
+
+        class _WholeWords(base):  # type: ignore[misc, valid-type]
+            _cfteach_whole_words = True
+
+            def __init__(self, *args, **kw) -> None:  # noqa: ANN002, ANN003
+                kw.update(break_long_words=False, break_on_hyphens=False)
+                super().__init__(*args, **kw)
+
+        module.TextWrapper = _WholeWords
+
+
+_no_broken_words()
 
 app = typer.Typer(
+    cls=_Group,
     name="cfteach",
     help="Counterfactual-aware teaching of a robot's reward through demonstrations.",
     no_args_is_help=True,

@@ -7,12 +7,13 @@ commands so `cfteach --help` stays fast.
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
+from cfteach.cli import _options as _opt
+from cfteach.cli import _progress
 from cfteach.cli._common import (
     ENVS_HELP,
     check_out_file,
@@ -31,7 +32,6 @@ _UNBOUNDED_HELP = ("Human models with unbounded values: skip (give nothing, the 
 _FORCE_HELP = "Go on even when the size estimate exceeds the free memory."
 _BACKEND_HELP = ("Where each round's planning and geometry run: local, dask or ray "
                  "(docs/parallel.md); the result is the same.")
-_WORKERS_HELP = "Worker processes (default: 1 = this process only, no pool; dask/ray: all)."
 _SCHEDULER_HELP = "Dask scheduler / Ray address (default: start a local cluster)."
 
 
@@ -115,8 +115,9 @@ def register(app: typer.Typer) -> None:
         force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
         envs: Annotated[str | None, typer.Option("--envs", help=ENVS_HELP)] = None,
         backend: Annotated[str, typer.Option(help=_BACKEND_HELP)] = "local",
-        workers: Annotated[int | None, typer.Option(help=_WORKERS_HELP)] = None,
+        workers: Annotated[int | None, _opt.workers()] = None,
         scheduler: Annotated[str | None, typer.Option(help=_SCHEDULER_HELP)] = None,
+        quiet: Annotated[bool, _opt.quiet()] = False,
     ) -> None:
         """Choose the demonstrations one study condition shows; print the curriculum JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -139,6 +140,7 @@ def register(app: typer.Typer) -> None:
             fail(f"--seed must be 0 or more, got {seed}")
         if proportion is not None and not 0 < proportion <= 1:
             fail(f"--proportion must lie in (0, 1], got {proportion}")
+        _progress.set_quiet(quiet)
         check_parallel(backend, workers, scheduler)
         check_out_file(out)
         dom = load_domain(domain, force=force, envs=envs)
@@ -146,7 +148,7 @@ def register(app: typer.Typer) -> None:
             cur = teach(dom, condition, profile=profile, seed=seed,
                         human_models=human_models, max_demos=max_demos,
                         proportion=proportion, unbounded_models=unbounded_models,
-                        progress=sys.stderr.isatty(), envs=_envs_of(dom, envs),
+                        progress=_progress.enabled(), envs=_envs_of(dom, envs),
                         backend=backend, workers=workers, scheduler=scheduler)
         except (ValueError, TypeError) as exc:
             fail(str(exc))
@@ -178,8 +180,9 @@ def register(app: typer.Typer) -> None:
         force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
         envs: Annotated[str | None, typer.Option("--envs", help=ENVS_HELP)] = None,
         backend: Annotated[str, typer.Option(help=_BACKEND_HELP)] = "local",
-        workers: Annotated[int | None, typer.Option(help=_WORKERS_HELP)] = None,
+        workers: Annotated[int | None, _opt.workers()] = None,
         scheduler: Annotated[str | None, typer.Option(help=_SCHEDULER_HELP)] = None,
+        quiet: Annotated[bool, _opt.quiet()] = False,
     ) -> None:
         """Pick low / medium / high difficulty tests (Algorithm 2); print the tests JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -193,6 +196,7 @@ def register(app: typer.Typer) -> None:
             _check_choice(unbounded_models, tuple(UNBOUNDED_RULES), "--unbounded-models")
         if seed < 0:
             fail(f"--seed must be 0 or more, got {seed}")
+        _progress.set_quiet(quiet)
         check_parallel(backend, workers, scheduler)
         check_out_file(out)
         curricula = []
@@ -210,7 +214,7 @@ def register(app: typer.Typer) -> None:
                               per_level=per_level, human_models=human_models,
                               include_candidates=all_candidates,
                               unbounded_models=unbounded_models,
-                              progress=sys.stderr.isatty(), envs=_envs_of(dom, envs),
+                              progress=_progress.enabled(), envs=_envs_of(dom, envs),
                               backend=backend, workers=workers, scheduler=scheduler)
         except (ValueError, TypeError, KeyError) as exc:
             fail(str(exc))
