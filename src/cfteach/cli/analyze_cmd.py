@@ -5,12 +5,9 @@ simulated study (`cfteach analyze --synthetic N --out DIR`, which first writes t
 export to DIR/export). Heavy imports happen inside the command so `cfteach --help` stays fast.
 """
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 
-import click
 import typer
 
 from cfteach.cli import _options as _opt
@@ -214,6 +211,8 @@ def analyze(
 
     padjust = _padjust(padjust)
     check_out_dir(out)  # before the work
+    import click  # here, not at the top: `cfteach --help` stays fast
+
     from cfteach.analysis import (
         AnalysisConfig,
         ExclusionConfig,
@@ -328,7 +327,6 @@ def power(
     counterfactual x difficulty interaction; writes power.md, power.csv and power.png/.svg.
     """
     from cfteach.analysis.power import MIN_PARTICIPANTS, power_curve, write_power_report
-
     from cfteach.cli import _progress
     from cfteach.cli._common import check_out_dir
 

@@ -1,8 +1,6 @@
 """`cfteach check DOMAIN...`: every check a domain must pass, and its size and cost, before
 anything is taught (docs/domains.md, "Checks before planning")."""
 
-from __future__ import annotations
-
 from typing import Annotated
 
 import typer

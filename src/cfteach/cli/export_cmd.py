@@ -1,8 +1,6 @@
 """`cfteach export minari`: the robot's demonstrations and people's test answers as Minari
 datasets (docs/ecosystem.md). Heavy imports happen inside the commands."""
 
-from __future__ import annotations
-
 import json
 import os
 from pathlib import Path

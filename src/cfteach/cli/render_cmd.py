@@ -3,8 +3,6 @@
 Heavy imports happen inside the commands so `cfteach --help` stays fast.
 """
 
-from __future__ import annotations
-
 import json
 from pathlib import Path
 from typing import Annotated, Any

@@ -1,7 +1,5 @@
 """`cfteach simulate`: compare teaching conditions with simulated learners (docs/simulate.md)."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 
@@ -34,7 +32,8 @@ def register(app: typer.Typer) -> None:
         learners: int = typer.Option(32, "--learners", "-n", min=1,
                                      help="How many simulated learners per condition and model."),
         seeds: int = typer.Option(1, "--replications", "-k", min=1,
-                                  help="How many replications: teaching + tests are redone for each, on its own seed."),
+                                  help="How many replications: teaching and tests are redone "
+                                       "for each, on its own seed."),
         seed: int = typer.Option(0, "--seed", min=0, help="Root seed of the learners' draws."),
         candidates: bool = typer.Option(
             False, "--all", help="Also give every candidate test (not just the selected)."),

@@ -1,7 +1,5 @@
 """`cfteach serve` and `cfteach study init|export|progress`: run the user study."""
 
-from __future__ import annotations
-
 import json
 import os
 from pathlib import Path
@@ -90,7 +88,9 @@ def init(
     quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """Write a study folder (study.json) from curricula and test sets."""
+    from cfteach.cli import _progress
     from cfteach.cli._common import check_out_dir, fail, study_sessions
+    from cfteach.cli._lists import split_list
     from cfteach.cli.simulate_cmd import _teacher_settings
     from cfteach.study.build import (
         check_conditions,
@@ -99,9 +99,6 @@ def init(
         teaching_sources,
         toy_sources,
     )
-
-    from cfteach.cli import _progress
-    from cfteach.cli._lists import split_list
 
     _progress.set_quiet(quiet)
     check_out_dir(out)
@@ -156,17 +153,14 @@ def export(
     include_previews: bool = typer.Option(False, help="Also export preview/test sessions."),
 ) -> None:
     """Write tidy CSVs (participants, test responses, Likert, demo views) + dictionary."""
-    from cfteach.cli._common import check_out_dir, fail, sqlite_path, study_sessions
+    from cfteach.cli._common import check_out_dir, fail, study_sessions
     from cfteach.study.export import export_csv
 
     check_out_dir(out)
     db = db or f"sqlite:///{study / 'study.db'}"
     from cfteach.cli._checks import check_db_url
 
-    check_db_url(db)
-    path = sqlite_path(db)
-    if path is not None and not path.is_file():
-        fail(f"--db {db}: no database file at {path} (export never creates one)")
+    check_db_url(db, must_exist=True)  # export never creates a database
     if study_sessions(db) is None:
         fail(f"--db {db}: not a cfteach study database (no sessions table)")
 

@@ -4,8 +4,6 @@ Both print JSON (docs/schemas.md) or write it with --out. Heavy imports happen i
 commands so `cfteach --help` stays fast.
 """
 
-from __future__ import annotations
-
 import json
 from pathlib import Path
 from typing import Annotated, Any
