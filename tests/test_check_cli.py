@@ -77,7 +77,7 @@ def test_check_warns_above_half_the_free_memory_and_refuses_above_it(
     for w in words:
         assert w in " ".join(res.output.split())
     if not words:
-        assert "warning" not in res.output and "error" not in res.output
+        assert "warning:" not in res.output and "error:" not in res.output
     if code:  # --force runs the planning checks anyway
         res = CliRunner().invoke(app, ["check", "skateboard", "--force"])
         assert res.exit_code == 0 and "passed: no reward loop that w* pays for" in res.stdout

@@ -313,7 +313,7 @@ def test_an_existing_dataset_is_refused_before_any_work(minari_root, monkeypatch
 
 
 def test_export_shows_progress_only_on_a_terminal_and_not_quiet(monkeypatch):
-    import sys
+    from cfteach.cli import _progress
 
     seen = []
 
@@ -322,7 +322,7 @@ def test_export_shows_progress_only_on_a_terminal_and_not_quiet(monkeypatch):
         raise ValueError("stop here")
 
     monkeypatch.setattr(ecosystem, "candidate_episodes", fake)
-    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    monkeypatch.setattr(_progress, "_stderr_is_terminal", lambda: True)
     _run(["export", "minari", "demos", "skateboard"])
     _run(["export", "minari", "demos", "skateboard", "--quiet"])
     assert seen == [True, False]

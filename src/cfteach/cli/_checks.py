@@ -36,7 +36,8 @@ def check_db_url(url: str, option: str = "--db", *, must_exist: bool = False) ->
     if path is None:
         return
     if must_exist and not path.is_file():
-        fail(f"{option} {url}: no database file at {path} (give --study FOLDER or --db URL)")
+        fail(f"{option} {url}: no database file at {path} (export never creates one; "
+             "give --study FOLDER or --db URL)")
     if not path.parent.is_dir():
         fail(f"{option} {url}: the folder {path.parent} does not exist")
 

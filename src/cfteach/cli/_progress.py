@@ -19,9 +19,13 @@ def set_quiet(quiet: bool) -> None:
     _quiet = bool(quiet)
 
 
+def _stderr_is_terminal() -> bool:
+    return sys.stderr.isatty()
+
+
 def enabled() -> bool:
     """Show progress: not ``--quiet`` and stderr is a terminal."""
-    return not _quiet and sys.stderr.isatty()
+    return not _quiet and _stderr_is_terminal()
 
 
 def bar(iterable: Iterable[Any] | None = None, *, total: int | None = None,

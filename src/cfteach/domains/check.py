@@ -39,7 +39,7 @@ CHECKS: tuple[tuple[str, str, bool], ...] = (
     ("reward_loop", "no reward loop that w* pays for", True),
     ("unreachable_goal", "every instance's goal (or an exit) reachable from its start", True),
     ("dead_end", "no state from which the episode can no longer end", True),
-    ("goal_not_optimal", "some optimal path under w* reaches the goal (warning only)", True),
+    ("goal_not_optimal", "some optimal path under w* reaches the goal (else a warning)", True),
 )
 
 
