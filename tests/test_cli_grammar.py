@@ -146,3 +146,14 @@ def test_help_never_cuts_a_word_at_40_columns() -> None:
             for opt in p.opts:
                 if not p.hidden:
                     assert opt in words or opt.lstrip("-") in words, (path, opt)
+
+
+def test_teach_show_names_the_masked_feature_as_the_legend_does() -> None:
+    res = WideRunner().invoke(app, ["teach", "delivery", "--max-demos", "2", "--show", "-q"])
+    assert res.exit_code == 0, res.output
+    heads = [ln for ln in res.stderr.splitlines() if ln.startswith("demo ")]
+    masks = [ln.split("  mask ")[1].split("  actions")[0] for ln in heads]
+    assert masks and all(m in ("mud (toll)", "battery (hotswap)", "step", "none")
+                         for m in masks), masks
+    legend = next(ln for ln in res.stderr.splitlines() if ln.startswith("@ agent"))
+    assert "~ mud" in legend  # the word the mask line uses for `toll`

@@ -198,6 +198,7 @@ def analyze(
             rich_help_panel=_SYN,
         ),
     ] = False,
+    quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """Run the paper's statistics on a study export (or a simulated one).
 
@@ -207,8 +208,10 @@ def analyze(
         _usage_error("give either EXPORT_DIR or --synthetic N (exactly one)")
     if export_only and synthetic is None:
         _usage_error("--export-only needs --synthetic")
+    from cfteach.cli import _progress
     from cfteach.cli._common import check_out_dir
 
+    _progress.set_quiet(quiet)
     padjust = _padjust(padjust)
     check_out_dir(out)  # before the work
     import click  # here, not at the top: `cfteach --help` stays fast
@@ -261,7 +264,8 @@ def analyze(
             figures=not no_figures,
             authors_tukey=authors_tukey,
         )
-        results = run(export_dir, out, cfg, note=note)
+        with _progress.busy("analysing"):
+            results = run(export_dir, out, cfg, note=note)
     except (typer.Exit, click.ClickException):
         raise
     except (ExportError, ValueError) as exc:

@@ -73,9 +73,17 @@ def _show(cur_json: dict[str, Any], domain: Any) -> None:
         from cfteach import render
     except ImportError:  # pragma: no cover - render is part of the package
         render = None
+    labels = dict(zip(domain.feature_names, domain.feature_labels, strict=True))
+
+    def masked(name: str | None) -> str:  # the legend's word first, the JSON's name after
+        if name is None:
+            return "none"
+        label = labels.get(name, name).lower()
+        return label if label == name else f"{label} ({name})"
+
     for i, demo in enumerate(cur_json["demos"], 1):
         head = (f"demo {i}: env {demo['env_code']}  gain {demo['knowledge_gain']:.3f}  "
-                f"mask {demo['masked_feature']}  actions {' '.join(demo['actions'])}")
+                f"mask {masked(demo['masked_feature'])}  actions {' '.join(demo['actions'])}")
         typer.echo(head, err=True)
         if render is not None:
             inst = domain.instance(demo["env_index"])
