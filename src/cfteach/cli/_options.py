@@ -36,8 +36,10 @@ def quiet() -> Any:  # noqa: ANN401
 
 def workers() -> Any:  # noqa: ANN401
     """``--workers``: worker processes; the same default everywhere."""
-    return typer.Option("--workers", help="Worker processes (default: every local core; "
-                        "1 = this process only; dask/ray: all the cluster's).")
+    return typer.Option("--workers", help="Worker processes (default: one per independent "
+                        "job, up to every local core: 1 for teach and tests, one per domain "
+                        "for reproduce, learner chunks for simulate; dask/ray: the whole "
+                        "cluster). The results are the same for any number.")
 
 
 def study() -> Any:  # noqa: ANN401

@@ -56,6 +56,7 @@ def reproduce(
 
     _progress.set_quiet(quiet)
     if report_only:
+        check_out_dir(out)  # the report is written into --out
         try:
             results = load_results(out)
         except (OSError, ValueError) as exc:
