@@ -41,7 +41,7 @@ def test_simulate_command_names_bad_input(tmp_path) -> None:
     runner = WideRunner()
     res = runner.invoke(app, ["simulate", "-d", "tiles", "-c", "proposed,telepathy",
                               "--from", str(src), "--out", str(tmp_path / "o")])
-    assert res.exit_code == 2 and "--condition: unknown value 'telepathy'" in res.output
+    assert res.exit_code == 2 and "unknown condition(s) ['telepathy']" in res.output
     res = runner.invoke(app, ["simulate", "-d", "tiles", "--backend", "spark",
                               "--from", str(src), "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "unknown parallel backend 'spark'" in res.output

@@ -90,12 +90,15 @@ def register(app: typer.Typer) -> None:
 
 def _check_names(conditions: list[str] | None, learners: list[str] | None) -> None:
     """Unknown conditions and learner models: one line with a close match, before work."""
-    from cfteach.cli._common import check_choice
+    from cfteach.cli._common import check_choice, did_you_mean, fail
     from cfteach.simulate.learners import LEARNER_MODELS
     from cfteach.simulate.sweep import NO_TEACHING, SWEEP_CONDITIONS
 
-    for cond in conditions or []:
-        check_choice(cond, (*SWEEP_CONDITIONS, NO_TEACHING), "--condition")
+    allowed = (*SWEEP_CONDITIONS, NO_TEACHING)
+    bad = [c for c in conditions or [] if c not in allowed]
+    if bad:  # the sweep's own words, and a close match
+        fail(f"unknown condition(s) {bad}; choose from {', '.join(allowed)}"
+             + did_you_mean(bad[0], allowed))
     for spec in learners or []:
         check_choice(spec.split(":")[0], tuple(LEARNER_MODELS), "--learner-model")
 

@@ -109,16 +109,15 @@ def init(
              "folder, or pass --force")
 
     names = split_list(domains) or list(DEFAULT_DOMAINS)
-    from cfteach.cli._common import check_choice
-    from cfteach.study.build import ALL_CONDITIONS
-
-    for cond in split_list(conditions) or []:
-        check_choice(cond, ALL_CONDITIONS, "--condition")
     try:
         chosen = check_conditions(split_list(conditions) or list(_PAPER_CONDITIONS))
         settings = _teacher_settings([x for t in teacher or [] for x in t.split(",") if x])
     except ValueError as e:
-        fail(str(e))
+        from cfteach.cli._common import did_you_mean
+        from cfteach.study.build import ALL_CONDITIONS
+
+        bad = [c for c in split_list(conditions) or [] if c not in ALL_CONDITIONS]
+        fail(str(e) + (did_you_mean(bad[0], ALL_CONDITIONS) if bad else ""))
     if not (toy or preview or source is not None):  # teaching here: check domains first
         from cfteach.cli._common import load_domain
 
