@@ -216,7 +216,7 @@ def test_cli_writes_and_checks_answer_and_demo_datasets(study, tmp_path):
                       "--root", str(root)])
     assert (code, out.strip()) == (0, "cfteach/tiles/answers-v0: all 18 episodes replay "
                                       "to their rewards")
-    code, out = _run(["export", "minari", "demos", "--domain", "skateboard",
+    code, out = _run(["export", "minari", "demos", "skateboard",
                       "--instances", "3", "--root", str(root)])
     assert code == 0 and "cfteach/skateboard/candidates-v0:" in out
     n = len(domains.load("skateboard").instance(3).states())
@@ -224,7 +224,7 @@ def test_cli_writes_and_checks_answer_and_demo_datasets(study, tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["demos", "--domain", "nowhere"], "domain 'nowhere'"),
+    (["demos", "nowhere"], "domain 'nowhere'"),
     (["answers", "--study", "/nonexistent", "--export", "/nonexistent"], "no such file"),
     (["check", "cfteach/none-v0"], "no local Minari dataset"),
 ])

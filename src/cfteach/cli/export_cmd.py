@@ -108,8 +108,6 @@ def demos(
     _progress.set_quiet(quiet)
     _check_root(root)
     dom = _load_domain(domain)
-    kind = "curricula" if curriculum else "candidates"
-    _check_new([dataset_id or f"cfteach/{dom.name}/{kind}-v0"], root, force)
     if envs is not None:
         if curriculum:
             _fail("--envs selects candidate demonstrations; a curriculum already names its "
@@ -122,6 +120,8 @@ def demos(
             dom = subset(dom, envs)
         except ValueError as e:
             _fail(f"--envs: {e}")
+    kind = "curricula" if curriculum else "candidates"
+    _check_new([dataset_id or f"cfteach/{dom.name}/{kind}-v0"], root, force)  # before work
     try:
         if curriculum:
             episodes = []
