@@ -63,11 +63,11 @@ def register(app: typer.Typer) -> None:
         correlation, as JSON, CSV and plots."""
         from cfteach.cli import _progress
         from cfteach.cli._common import check_out_dir, load_domain
-        from cfteach.simulate.sweep import run_sweep
 
         _progress.set_quiet(quiet)
-        _check_names(split_list(conditions), split_list(learner))
         check_out_dir(out)  # before the work: a bad --out must not cost the whole sweep
+        _check_names(split_list(conditions), split_list(learner))
+        from cfteach.simulate.sweep import run_sweep
         for name in split_list(domains) or []:  # the domain checks and the size guard
             load_domain(name, force=force)
         try:
