@@ -80,8 +80,8 @@ def closed_loop_study_shots(tmp: Path) -> None:
     from cfteach.study.screenshots import take_screenshots
 
     study = tmp / "cl-study"
-    run("study", "init", "--out", str(study), "--preview", "--domains", "skateboard",
-        "--conditions", "closed_loop", "--teacher", "max_items=9", "--demo-step-ms", "200")
+    run("study", "init", "--out", str(study), "--preview", "--domain", "skateboard",
+        "--condition", "closed_loop", "--teacher", "max_items=9", "--demo-step-ms", "200")
     saved = take_screenshots(study, tmp / "cl-shots", prefix="study-", kinds=("closed_loop",))
     kept = [p for p in saved if p.name in CLOSED_LOOP_IMAGES]
     for p in kept:

@@ -161,7 +161,7 @@ def test_export_minari_demos_with_envs(tmp_path: Path) -> None:
     from cfteach import ecosystem
 
     root = tmp_path / "root"
-    code, text = _cli("export", "minari", "demos", "--domain", "skateboard", "--envs", "3,110",
+    code, text = _cli("export", "minari", "demos", "skateboard", "--envs", "3,110",
                       "--root", str(root))
     assert code == 0, text
     ds = ecosystem.load_dataset("cfteach/skateboard/candidates-v0", root)
@@ -170,7 +170,7 @@ def test_export_minari_demos_with_envs(tmp_path: Path) -> None:
     episodes = ecosystem.candidate_episodes(subset(sk, "3,110"))
     assert {ep.env_code for ep in episodes} == {"011", "110"}
     assert {ep.metadata["env_index"] for ep in episodes} == {3, 6}
-    code, text = _cli("export", "minari", "demos", "--domain", "skateboard", "--envs", "9",
+    code, text = _cli("export", "minari", "demos", "skateboard", "--envs", "9",
                       "--root", str(root))
     assert code == 2 and text.strip() == ("Error: --envs: skateboard: environment index 9 is "
                                           "out of range 0..7")

@@ -216,7 +216,7 @@ def test_cli_writes_and_checks_answer_and_demo_datasets(study, tmp_path):
                       "--root", str(root)])
     assert (code, out.strip()) == (0, "cfteach/tiles/answers-v0: all 18 episodes replay "
                                       "to their rewards")
-    code, out = _run(["export", "minari", "demos", "--domain", "skateboard",
+    code, out = _run(["export", "minari", "demos", "skateboard",
                       "--instances", "3", "--root", str(root)])
     assert code == 0 and "cfteach/skateboard/candidates-v0:" in out
     n = len(domains.load("skateboard").instance(3).states())
@@ -224,7 +224,7 @@ def test_cli_writes_and_checks_answer_and_demo_datasets(study, tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["demos", "--domain", "nowhere"], "domain 'nowhere'"),
+    (["demos", "nowhere"], "domain 'nowhere'"),
     (["answers", "--study", "/nonexistent", "--export", "/nonexistent"], "no such file"),
     (["check", "cfteach/none-v0"], "no local Minari dataset"),
 ])
@@ -254,3 +254,75 @@ def test_a_reader_recovers_the_environment_without_importing_cfteach(tmp_path):
                           check=False)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["False", "cfteach/Skateboard-v0", "True"]
+
+
+# ------------------------------------------------------- interrupted and repeated exports
+def test_an_interrupted_export_leaves_no_dataset(minari_root, monkeypatch):
+    dom = domains.load("skateboard")
+    eps = ecosystem.candidate_episodes(dom, env_indices=[7])[:2]
+
+    def ctrl_c(*_a, **_k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(minari_io, "_attrs", ctrl_c)  # after Minari wrote the episodes
+    with pytest.raises(KeyboardInterrupt):
+        ecosystem.write_dataset(eps, "cfteach/skateboard/x-v0", dom)
+    assert "cfteach/skateboard/x-v0" not in minari.list_local_datasets()
+    assert [p.name for p in minari_root.iterdir() if p.name.startswith(".")] == []
+    monkeypatch.undo()
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(minari_root))
+    ds = ecosystem.write_dataset(eps, "cfteach/skateboard/x-v0", dom)  # no --force needed
+    assert ds.total_episodes == 2 and ecosystem.check_replay(ds) == 2
+
+
+def test_replacing_a_dataset_keeps_the_old_one_until_the_new_one_is_in(minari_root,
+                                                                       monkeypatch):
+    dom = domains.load("skateboard")
+    eps = ecosystem.candidate_episodes(dom, env_indices=[7])[:3]
+    ecosystem.write_dataset(eps, "cfteach/skateboard/x-v0", dom)
+
+    def ctrl_c(*_a, **_k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(minari_io, "_attrs", ctrl_c)  # after Minari wrote the episodes
+    with pytest.raises(KeyboardInterrupt):
+        ecosystem.write_dataset(eps[:1], "cfteach/skateboard/x-v0", dom, force=True)
+    monkeypatch.undo()
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(minari_root))
+    assert ecosystem.load_dataset("cfteach/skateboard/x-v0").total_episodes == 3
+
+
+def test_check_fails_on_a_dataset_without_episodes(monkeypatch):
+    monkeypatch.setattr(ecosystem, "load_dataset", lambda *_a, **_k: object())
+    monkeypatch.setattr(ecosystem, "check_replay", lambda *_a, **_k: 0)
+    code, out = _run(["export", "minari", "check", "cfteach/empty-v0"])
+    assert code == 1
+    assert "no episodes" in out and "all 0 episodes replay" not in out
+
+
+def test_an_existing_dataset_is_refused_before_any_work(minari_root, monkeypatch):
+    (minari_root / "cfteach" / "tiles" / "candidates-v0" / "data").mkdir(parents=True)
+
+    def no_work(*_a, **_k):
+        raise AssertionError("planned before refusing")
+
+    monkeypatch.setattr(ecosystem, "candidate_episodes", no_work)
+    code, out = _run(["export", "minari", "demos", "tiles"])
+    assert code == 2
+    assert "'cfteach/tiles/candidates-v0' exists already (--force replaces it)" in out
+
+
+def test_export_shows_progress_only_on_a_terminal_and_not_quiet(monkeypatch):
+    from cfteach.cli import _progress
+
+    seen = []
+
+    def fake(dom, env_indices=None, progress=False):
+        seen.append(progress)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(ecosystem, "candidate_episodes", fake)
+    monkeypatch.setattr(_progress, "_stderr_is_terminal", lambda: True)
+    _run(["export", "minari", "demos", "skateboard"])
+    _run(["export", "minari", "demos", "skateboard", "--quiet"])
+    assert seen == [True, False]

@@ -101,7 +101,10 @@ def test_sessions_on_an_unstored_study_file_block_a_restart_unless_new_version(
     _init(folder, "Second study", "CODE2")
     with pytest.raises(StudyError, match="1 session.* in progress .*--new-version"):
         create_app(folder, db_url)
-    r = CliRunner().invoke(cli, ["serve", "--study", str(folder), "--db", db_url])
+    from cfteach.study.livesrv import free_port
+
+    r = CliRunner().invoke(cli, ["serve", "--study", str(folder), "--db", db_url,
+                                 "--port", str(free_port())])  # serve checks its port first
     assert r.exit_code == 1 and "--new-version" in r.output
     assert "Traceback" not in r.output and len(r.output.strip().splitlines()) == 1
     app = create_app(folder, db_url, new_version=True)

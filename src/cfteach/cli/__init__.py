@@ -1,103 +1,30 @@
-"""The `cfteach` command line: one module per command family, each with `register(app)`."""
+"""The `cfteach` command line (docs/cli.md). `app` is the Typer app; it is built on first
+use, so `cfteach --version` answers before Typer, click or any command module is imported."""
 
 from __future__ import annotations
 
-import importlib
-import os
 import sys
+from typing import Any
 
-import typer
-
-app = typer.Typer(
-    name="cfteach",
-    help="Counterfactual-aware teaching of a robot's reward through demonstrations.",
-    no_args_is_help=True,
-    add_completion=False,
-    # Plain click help: wraps at word boundaries and never cuts an option name short.
-    rich_markup_mode=None,
-    pretty_exceptions_enable=False,
-    context_settings={"help_option_names": ["-h", "--help"]},
-)
-
-# Each module owns one family of commands; registering them here keeps this file stable.
-_COMMAND_MODULES = (
-    "check_cmd",
-    "domains_cmd",
-    "teach_cmd",
-    "render_cmd",
-    "reproduce_cmd",
-    "simulate_cmd",
-    "study_cmd",
-    "analyze_cmd",
-    "export_cmd",
-)
+__all__ = ["app", "main"]
 
 
-def _print_version(value: bool) -> None:
-    if value:
-        from cfteach import __version__
+def __getattr__(name: str) -> Any:  # noqa: ANN401 - the Typer app
+    if name == "app":
+        from cfteach.cli._app import app
 
-        typer.echo(f"cfteach {__version__}")
-        raise typer.Exit()
-
-
-@app.callback()
-def _root(
-    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
-                                 help="Print cfteach's version and exit."),
-) -> None:
-    """Counterfactual-aware teaching of a robot's reward through demonstrations."""
-
-
-@app.command()
-def version() -> None:
-    """Print cfteach's version."""
-    from cfteach import __version__
-
-    typer.echo(__version__)
-
-
-for _name in _COMMAND_MODULES:
-    importlib.import_module(f"{__name__}.{_name}").register(app)
-
-
-def _first_sentence(text: str | None) -> str | None:
-    """A command's summary for the command list: its first sentence, whole (click would cut
-    a long one at the terminal's width with "...")."""
-    if not text:
-        return None
-    para = " ".join(text.strip().split("\n\n")[0].split())
-    end = para.find(". ")
-    return para if end < 0 else para[: end + 1]
-
-
-def _whole_summaries(typer_app: typer.Typer) -> None:
-    """Give every command and group, at every level, its whole first sentence as summary."""
-    for info in [*typer_app.registered_commands, *typer_app.registered_groups]:
-        cb = getattr(info, "callback", None)
-        sub = getattr(info, "typer_instance", None)
-        if not info.short_help:
-            info.short_help = _first_sentence(
-                info.help or (sub.info.help if sub is not None else None)
-                or (cb.__doc__ if cb else None))
-        if sub is not None:
-            _whole_summaries(sub)
-
-
-_whole_summaries(app)
+        return app
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def main() -> None:
     """Entry point of the `cfteach` console script: no traceback reaches the user (set
     CFTEACH_DEBUG=1 to see one)."""
-    try:
-        app()
-    except KeyboardInterrupt:
-        typer.echo("Error: interrupted", err=True)
-        sys.exit(130)
-    except Exception as exc:  # noqa: BLE001 - the last line of defence
-        if os.environ.get("CFTEACH_DEBUG"):
-            raise
-        typer.echo(f"Error: {type(exc).__name__}: {exc} (an unexpected failure; set "
-                   "CFTEACH_DEBUG=1 to see the traceback and please report it)", err=True)
-        sys.exit(1)
+    if sys.argv[1:] == ["--version"]:
+        from cfteach import __version__
+
+        print(f"cfteach {__version__}")
+        return
+    from cfteach.cli._app import main as run
+
+    run()

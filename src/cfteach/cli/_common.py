@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import difflib
 import os
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -31,6 +32,13 @@ def did_you_mean(value: str, choices: Sequence[str]) -> str:
     return f"; did you mean {close[0]!r}?" if close else ""
 
 
+def check_choice(value: str, choices: Sequence[str], option: str) -> None:
+    """One line naming a value outside `choices`, with the allowed ones and a close match."""
+    if value not in choices:
+        fail(f"{option}: unknown value {value!r} (allowed: {', '.join(choices)})"
+             + did_you_mean(value, choices))
+
+
 def _writable_dir(folder: Path) -> Path | None:
     """The nearest existing ancestor of `folder` if it is not a writable directory."""
     probe = folder
@@ -39,6 +47,10 @@ def _writable_dir(folder: Path) -> Path | None:
             return None
         probe = probe.parent
     if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
+        return probe
+    try:  # access() says yes to root everywhere: try it (/proc, read-only mounts)
+        os.rmdir(tempfile.mkdtemp(prefix=".cfteach-probe-", dir=probe))
+    except OSError:
         return probe
     return None
 
@@ -55,7 +67,7 @@ def check_out_file(path: Path | None, option: str = "--out") -> None:
     bad = _writable_dir(path.parent)
     if bad is not None:
         fail(f"{option} {path}: cannot write into {bad} "
-             f"({'not a directory' if not bad.is_dir() else 'permission denied'})")
+             f"({'not a directory' if not bad.is_dir() else 'not writable'})")
 
 
 def check_out_dir(path: Path, option: str = "--out") -> None:
@@ -65,7 +77,7 @@ def check_out_dir(path: Path, option: str = "--out") -> None:
     bad = _writable_dir(path)
     if bad is not None:
         fail(f"{option} {path}: cannot write into {bad} "
-             f"({'not a directory' if not bad.is_dir() else 'permission denied'})")
+             f"({'not a directory' if not bad.is_dir() else 'not writable'})")
 
 
 def check_positive(value: int | None, option: str) -> None:
@@ -115,6 +127,10 @@ def load_domain(name: str, *, force: bool = False, sphere: bool = False,
              "`cfteach teach` / `cfteach tests`)")
     est = estimate_size(dom)
     free = available_memory()
+    if free is not None and free / 2 < est.teach_peak_bytes <= free:
+        typer.echo(f"warning: {dom.name}: teaching needs about "
+                   f"{human_bytes(est.teach_peak_bytes)}, more than half of the "
+                   f"{human_bytes(free)} free: {shrink_advice(dom, est)}", err=True)
     if free is not None and est.teach_peak_bytes > free and not force:
         fail(f"{dom.name}: teaching needs about {human_bytes(est.teach_peak_bytes)} of memory "
              f"({est.instances} instances, about {est.demonstrations} demonstrations), "

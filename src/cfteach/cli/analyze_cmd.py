@@ -5,13 +5,12 @@ simulated study (`cfteach analyze --synthetic N --out DIR`, which first writes t
 export to DIR/export). Heavy imports happen inside the command so `cfteach --help` stays fast.
 """
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 
-import click
 import typer
+
+from cfteach.cli import _options as _opt
 
 _EXC = "Exclusions"
 _SYN = "Synthetic data"
@@ -35,6 +34,18 @@ def _usage_error(message: str) -> None:
     raise typer.Exit(code=2)
 
 
+def _is_own_code(filename: str) -> bool:
+    """A frame of the installed package itself (decided by its directory, so a clone in a
+    folder named ``cfteach`` does not make its tests look like the package's own code)."""
+    import cfteach
+
+    package = Path(cfteach.__file__).resolve().parent
+    try:
+        return Path(filename).resolve().is_relative_to(package)
+    except (OSError, ValueError):
+        return False
+
+
 def unexpected_error(exc: BaseException, what: str) -> str:
     """One line for an error we did not foresee: what failed, where, and how to report it.
 
@@ -43,10 +54,21 @@ def unexpected_error(exc: BaseException, what: str) -> str:
     """
     import traceback
 
-    frames = [f for f in traceback.extract_tb(exc.__traceback__) if "cfteach" in f.filename]
+    frames = [f for f in traceback.extract_tb(exc.__traceback__) if _is_own_code(f.filename)]
     where = f" in {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
     msg = " ".join(str(exc).split()) or "(no message)"
     return f"{what} failed{where}: {type(exc).__name__}: {msg} (unexpected: please report it)"
+
+
+def _padjust(name: str) -> str:
+    """The correction's name as pingouin spells it (``bonferroni`` is ``bonf``); an unknown
+    one is a usage error with a close match."""
+    from cfteach.analysis.pipeline import PADJUST_METHODS
+    from cfteach.cli._common import check_choice
+
+    name = {"bonferroni": "bonf"}.get(name.lower(), name.lower())
+    check_choice(name, PADJUST_METHODS, "--padjust")
+    return name
 
 
 def analyze(
@@ -61,7 +83,7 @@ def analyze(
         str,
         typer.Option(
             help="Correction of within-subjects post hocs and pairwise tests: "
-            "holm, bonf, sidak, fdr_bh, fdr_by, none."
+            "holm, bonf (or bonferroni), sidak, fdr_bh, fdr_by, none."
         ),
     ] = "holm",
     no_figures: Annotated[bool, typer.Option("--no-figures", help="Skip the plots.")] = False,
@@ -176,6 +198,7 @@ def analyze(
             rich_help_panel=_SYN,
         ),
     ] = False,
+    quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """Run the paper's statistics on a study export (or a simulated one).
 
@@ -185,9 +208,14 @@ def analyze(
         _usage_error("give either EXPORT_DIR or --synthetic N (exactly one)")
     if export_only and synthetic is None:
         _usage_error("--export-only needs --synthetic")
+    from cfteach.cli import _progress
     from cfteach.cli._common import check_out_dir
 
+    _progress.set_quiet(quiet)
+    padjust = _padjust(padjust)
     check_out_dir(out)  # before the work
+    import click  # here, not at the top: `cfteach --help` stays fast
+
     from cfteach.analysis import (
         AnalysisConfig,
         ExclusionConfig,
@@ -236,7 +264,8 @@ def analyze(
             figures=not no_figures,
             authors_tukey=authors_tukey,
         )
-        results = run(export_dir, out, cfg, note=note)
+        with _progress.busy("analysing"):
+            results = run(export_dir, out, cfg, note=note)
     except (typer.Exit, click.ClickException):
         raise
     except (ExportError, ValueError) as exc:
@@ -263,8 +292,9 @@ def analyze(
 
 def power(
     n: Annotated[
-        list[int] | None,
-        typer.Option("--n", help="Numbers of participants to simulate (repeat the option)."),
+        list[str] | None,
+        typer.Option("--n", help="Numbers of participants to simulate (repeat the option "
+                     "or comma-separate)."),
     ] = None,
     sims: Annotated[int, typer.Option(help="Simulated studies per N.", min=1)] = 100,
     seed: Annotated[int, typer.Option(help="Seed of the first simulated study.")] = 0,
@@ -293,6 +323,7 @@ def power(
             rich_help_panel=_SYN,
         ),
     ] = 0.0,
+    quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """Power vs N for each hypothesis, by simulating the design at planted effect sizes.
 
@@ -300,8 +331,17 @@ def power(
     counterfactual x difficulty interaction; writes power.md, power.csv and power.png/.svg.
     """
     from cfteach.analysis.power import MIN_PARTICIPANTS, power_curve, write_power_report
+    from cfteach.cli import _progress
+    from cfteach.cli._common import check_out_dir
 
-    ns = sorted(set(n or [24, 48, 96, 144, 216]))
+    _progress.set_quiet(quiet)
+    check_out_dir(out)  # before the simulations
+    from cfteach.cli._lists import split_list
+
+    try:
+        ns = sorted({int(x) for x in split_list(n) or [24, 48, 96, 144, 216]})
+    except ValueError:
+        _usage_error(f"--n takes whole numbers of participants, got {', '.join(n or [])}")
     if ns[0] < MIN_PARTICIPANTS:
         _usage_error(
             f"--n must be at least {MIN_PARTICIPANTS} (two participants per condition), got {ns[0]}"
@@ -314,7 +354,8 @@ def power(
         "proposed_interaction": proposed_interaction,
     }
     try:
-        table = power_curve(ns, sims, effects, seed=seed, alpha=alpha, progress=None)
+        table = power_curve(ns, sims, effects, seed=seed, alpha=alpha,
+                            progress=_progress.enabled())
         paths = write_power_report(table, out, alpha)
     except Exception as exc:  # noqa: BLE001 - no traceback may reach the user
         typer.echo(f"Error: {unexpected_error(exc, 'power simulation')}", err=True)

@@ -3,8 +3,6 @@
 Heavy imports happen inside the command so `cfteach --help` stays fast.
 """
 
-from __future__ import annotations
-
 import json
 from typing import Annotated, Any
 

@@ -1,12 +1,14 @@
 """`cfteach export minari`: the robot's demonstrations and people's test answers as Minari
 datasets (docs/ecosystem.md). Heavy imports happen inside the commands."""
 
-from __future__ import annotations
-
 import json
+import os
 from pathlib import Path
+from typing import Annotated
 
 import typer
+
+from cfteach.cli import _options as _opt
 
 export_app = typer.Typer(help="Write cfteach data in other tools' formats (docs/ecosystem.md).",
                          no_args_is_help=True)
@@ -40,14 +42,41 @@ def _domain_arg(name_or_path: str, domain) -> str | None:  # noqa: ANN001
     return str(Path(name_or_path).resolve())
 
 
+def _check_root(root: Path | None) -> None:
+    """Before any work: the Minari root can be written (--root, else Minari's own)."""
+    from cfteach.cli._common import check_out_dir
+
+    if root is not None:
+        check_out_dir(root, "--root")
+        return
+    env = os.environ.get("MINARI_DATASETS_PATH")
+    check_out_dir(Path(env) if env else Path.home() / ".minari" / "datasets",
+                  "MINARI_DATASETS_PATH" if env else "the Minari root")
+
+
+def _check_new(dataset_ids: list[str], root: Path | None, force: bool) -> None:
+    """Before any work: refuse to replace a dataset without --force."""
+    from cfteach.ecosystem import dataset_exists
+
+    for dataset_id in dataset_ids:
+        try:
+            there = dataset_exists(dataset_id, root)
+        except ImportError as e:
+            _fail(str(e))
+        if there and not force:
+            _fail(f"dataset {dataset_id!r} exists already (--force replaces it)")
+
+
 def _write(episodes, dataset_id: str, domain, domain_arg, root, description: str,  # noqa: ANN001
            force: bool, check: bool) -> None:
+    from cfteach.cli import _progress
     from cfteach.ecosystem import check_replay, write_dataset
 
     try:
-        ds = write_dataset(episodes, dataset_id, domain, domain_arg=domain_arg, root=root,
-                           description=description, force=force)
-        checked = check_replay(ds) if check else None
+        with _progress.busy(f"writing {dataset_id}"):
+            ds = write_dataset(episodes, dataset_id, domain, domain_arg=domain_arg, root=root,
+                               description=description, force=force)
+        checked = check_replay(ds, progress=_progress.enabled()) if check else None
     except (ValueError, ImportError) as e:
         _fail(str(e))
     typer.echo(f"{dataset_id}: {ds.total_episodes} episodes, {ds.total_steps} steps"
@@ -56,7 +85,7 @@ def _write(episodes, dataset_id: str, domain, domain_arg, root, description: str
 
 @minari_app.command("demos")
 def demos(
-    domain: str = typer.Option(..., "--domain", help="Built-in domain name or domain file."),
+    domain: str = typer.Argument(..., help="Built-in domain name or domain file."),
     curriculum: list[Path] = typer.Option(  # noqa: B006 - typer's list option
         [], "--curriculum", help="Curriculum JSON (cfteach teach / reproduce output); "
         "repeat for several. Without it: every candidate demonstration."),
@@ -68,12 +97,16 @@ def demos(
     dataset_id: str = typer.Option("", help="Dataset id (default cfteach/DOMAIN/curricula-v0 "
                                    "or cfteach/DOMAIN/candidates-v0)."),
     root: Path | None = typer.Option(None, help=_ROOT_HELP),
-    force: bool = typer.Option(False, help="Replace an existing dataset of that id."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing dataset of that id."),
     check: bool = typer.Option(True, help="Replay every episode after writing."),
+    quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """The robot's demonstrations (rewards under w*) as a Minari dataset."""
+    from cfteach.cli import _progress
     from cfteach.ecosystem import candidate_episodes, curriculum_episodes
 
+    _progress.set_quiet(quiet)
+    _check_root(root)
     dom = _load_domain(domain)
     if envs is not None:
         if curriculum:
@@ -87,6 +120,8 @@ def demos(
             dom = subset(dom, envs)
         except ValueError as e:
             _fail(f"--envs: {e}")
+    kind = "curricula" if curriculum else "candidates"
+    _check_new([dataset_id or f"cfteach/{dom.name}/{kind}-v0"], root, force)  # before work
     try:
         if curriculum:
             episodes = []
@@ -99,7 +134,7 @@ def demos(
             kind, what = "curricula", f"{len(curriculum)} curriculum file(s)"
         else:
             keep = [int(x) for x in instances.split(",") if x.strip()] or None
-            episodes = candidate_episodes(dom, env_indices=keep)
+            episodes = candidate_episodes(dom, env_indices=keep, progress=_progress.enabled())
             kind, what = "candidates", "every candidate demonstration"
     except ValueError as e:
         _fail(str(e))
@@ -113,26 +148,33 @@ def demos(
 def answers(
     study: Path = typer.Option(..., "--study", help="Study folder (cfteach study init)."),
     export: Path = typer.Option(..., "--export", help="Its export (cfteach study export)."),
-    domains: str = typer.Option("", help="Comma-separated domains (default: all the "
-                                "study's); a domain file path for user domains."),
-    status: str = typer.Option("", help="Comma-separated participant statuses to keep, "
-                               "e.g. completed (default: all exported)."),
+    domains: Annotated[list[str] | None, _opt.domain_list(
+        "all the study's; a domain file path for user domains")] = None,
+    status: list[str] | None = typer.Option(None, "--status", help="Participant statuses to "
+                                            f"keep, e.g. completed ({_opt.LIST_NOTE}). "
+                                            "Default: all exported."),
     prefix: str = typer.Option("cfteach", help="Datasets are PREFIX/DOMAIN/answers-v0."),
     root: Path | None = typer.Option(None, help=_ROOT_HELP),
-    force: bool = typer.Option(False, help="Replace existing datasets of those ids."),
+    force: bool = typer.Option(False, "--force", help="Replace existing datasets of those ids."),
     check: bool = typer.Option(True, help="Replay every episode after writing."),
+    quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """People's test answers (one episode per participant x test) as Minari datasets."""
+    from cfteach.cli import _progress
+    from cfteach.cli._lists import split_list
     from cfteach.ecosystem import answer_episodes
     from cfteach.ecosystem.study_files import read_study
 
+    _progress.set_quiet(quiet)
+    _check_root(root)
     try:
-        names = [d.strip() for d in domains.split(",") if d.strip()] or read_study(study)["domains"]
+        names = split_list(domains) or read_study(study)["domains"]
     except ValueError as e:
         _fail(str(e))
-    keep = [s.strip() for s in status.split(",") if s.strip()] or None
-    for name in names:
-        dom = _load_domain(name)
+    keep = split_list(status)
+    loaded = [(name, _load_domain(name)) for name in names]
+    _check_new([f"{prefix}/{dom.name}/answers-v0" for _, dom in loaded], root, force)
+    for name, dom in loaded:
         try:
             episodes = answer_episodes(dom, study, export, statuses=keep)
         except ValueError as e:
@@ -149,14 +191,21 @@ def answers(
 def check_cmd(
     dataset_id: str = typer.Argument(..., help="A local Minari dataset id."),
     root: Path | None = typer.Option(None, help=_ROOT_HELP),
+    quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """Replay every episode of a dataset in its recovered environment."""
+    from cfteach.cli import _progress
     from cfteach.ecosystem import check_replay, load_dataset
 
+    _progress.set_quiet(quiet)
     try:
-        n = check_replay(load_dataset(dataset_id, root))
+        n = check_replay(load_dataset(dataset_id, root), progress=_progress.enabled())
     except (ValueError, ImportError, FileNotFoundError) as e:
         _fail(str(e))
+    if n == 0:
+        typer.echo(f"Error: {dataset_id}: the dataset holds no episodes (an interrupted "
+                   "export?); write it again with --force", err=True)
+        raise typer.Exit(1)
     typer.echo(f"{dataset_id}: all {n} episodes replay to their rewards")
 
 

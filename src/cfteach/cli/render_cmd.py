@@ -3,8 +3,6 @@
 Heavy imports happen inside the commands so `cfteach --help` stays fast.
 """
 
-from __future__ import annotations
-
 import json
 from pathlib import Path
 from typing import Annotated, Any
@@ -209,6 +207,7 @@ def report_cmd(
     """Rebuild pictures and index.html from the JSON files in a results directory."""
     from cfteach.report import build_report, load_meta, load_results
 
+    check_out_dir(out, "OUT")  # the report is written there: writable before any work
     try:
         results = load_results(out)
     except (OSError, ValueError) as exc:

@@ -3,13 +3,12 @@
 Heavy imports happen inside the command so `cfteach --help` stays fast.
 """
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from cfteach.cli import _options as _opt
 from cfteach.cli._lists import split_list
 
 
@@ -19,11 +18,7 @@ def reproduce(
     ] = Path("out/reproduce"),
     domains: Annotated[
         list[str] | None,
-        typer.Option(
-            "--domains",
-            "-d",
-            help="Domain names or TOML files (repeat or comma-separate); default: all built-ins.",
-        ),
+        _opt.domain_list("all built-ins"),
     ] = None,
     profile: Annotated[
         str, typer.Option(help="Settings profile: 'default' or 'reference' (docs/profiles.md).")
@@ -38,18 +33,12 @@ def reproduce(
     no_report: Annotated[
         bool, typer.Option("--no-report", help="Write the JSON files only.")
     ] = False,
-    force: Annotated[
-        bool, typer.Option("--force", help="Go on even when a domain's size estimate exceeds "
-                                           "the free memory.")
-    ] = False,
+    force: Annotated[bool, _opt.force()] = False,
     backend: Annotated[
         str, typer.Option(help="Where the domains are taught: local, dask or ray "
                                "(docs/parallel.md); the JSON is the same.")
     ] = "local",
-    workers: Annotated[
-        int | None, typer.Option(help="Domains taught at once (default: every local core; "
-                                      "1 = this process only).")
-    ] = None,
+    workers: Annotated[int | None, _opt.workers()] = None,
     scheduler: Annotated[
         str | None, typer.Option(help="Dask scheduler / Ray address (default: start a local "
                                       "cluster).")
@@ -59,16 +48,20 @@ def reproduce(
                                                  "comma-separated (e.g. step; 'none': none); "
                                                  "default: each domain file's [beliefs] known.")
     ] = None,
+    quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """Run every condition and test selection for the domains; write JSON, pictures and a
     self-contained index.html report."""
     from cfteach.bec.demos import PROFILES
+    from cfteach.cli import _progress
     from cfteach.cli._common import check_out_dir, did_you_mean, fail, load_domain
     from cfteach.cli.teach_cmd import check_parallel
     from cfteach.report import build_report, load_meta, load_results
     from cfteach.report.reproduce import reproduce as run
 
+    _progress.set_quiet(quiet)
     if report_only:
+        check_out_dir(out)  # the report is written into --out
         try:
             results = load_results(out)
         except (OSError, ValueError) as exc:
@@ -95,7 +88,8 @@ def reproduce(
     try:
         results, index = run(out, split_list(domains), profile=profile, seed=seed,
                              report=not no_report, backend=backend, workers=workers,
-                             scheduler=scheduler, known=known)
+                             scheduler=scheduler, known=known,
+                             progress=_progress.enabled())
     except (ValueError, FileNotFoundError) as exc:
         typer.echo(f"Error: {exc}", err=True)
         raise typer.Exit(2) from exc

@@ -1,11 +1,11 @@
 """`cfteach simulate`: compare teaching conditions with simulated learners (docs/simulate.md)."""
 
-from __future__ import annotations
-
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
+from cfteach.cli import _options as _opt
 from cfteach.cli._lists import split_list
 
 
@@ -15,24 +15,25 @@ def register(app: typer.Typer) -> None:
     @app.command("simulate")
     def simulate_cmd(
         domains: list[str] = typer.Option(
-            None, "--domains", "-d",
+            None, "--domain", "-d",
             help="Domains (comma-separated or repeated): built-in names, TOML files, or "
                  "random:WxH:fF:nN:sS. Default: delivery,tiles,skateboard."),
         conditions: list[str] = typer.Option(
-            None, "--conditions", "-c",
+            None, "--condition", "-c",
             help="baseline, feature_only, counterfactual_only, proposed, closed_loop "
                  "(adaptive teaching; adds the proposed_equal_budget control) and 'none' "
                  "(no demonstrations). Default: the paper's four and none."),
         learner: list[str] = typer.Option(
-            None, "--learner", "-l",
+            None, "--learner-model", "-l",
             help="Learner models: counterfactual, irl, noisy, inattentive, each optionally "
                  "with "
                  "field=value settings, e.g. noisy:temperature=0.1:human_models=3. "
                  "Default: counterfactual,noisy."),
         learners: int = typer.Option(32, "--learners", "-n", min=1,
-                                     help="Simulated learners per condition and model."),
-        seeds: int = typer.Option(1, "--seeds", "-k", min=1,
-                                  help="Replications: teaching + tests are redone per seed."),
+                                     help="How many simulated learners per condition and model."),
+        seeds: int = typer.Option(1, "--replications", "-k", min=1,
+                                  help="How many replications: teaching and tests are redone "
+                                       "for each, on its own seed."),
         seed: int = typer.Option(0, "--seed", min=0, help="Root seed of the learners' draws."),
         candidates: bool = typer.Option(
             False, "--all", help="Also give every candidate test (not just the selected)."),
@@ -43,8 +44,7 @@ def register(app: typer.Typer) -> None:
         human_models: int = typer.Option(8, "--human-models", min=1,
                                          help="Human models sampled by the teacher."),
         backend: str = typer.Option("local", "--backend", help="local, dask or ray."),
-        workers: int = typer.Option(None, "--workers", min=1,
-                                    help="Worker processes (default: all cores)."),
+        workers: Annotated[int | None, _opt.workers()] = None,
         scheduler: str = typer.Option(None, "--scheduler",
                                       help="Dask scheduler / Ray address (default: start a "
                                            "local cluster)."),
@@ -55,8 +55,8 @@ def register(app: typer.Typer) -> None:
             help="closed_loop teacher settings as field=value (comma-separated or repeated), "
                  "e.g. p_learn=0.7,max_items=30; see docs/closed-loop.md."),
         out: Path = typer.Option(Path("out/simulate"), "--out", "-o", help="Output folder."),
-        force: bool = typer.Option(False, "--force", help="Go on even when a domain's size "
-                                   "estimate exceeds the free memory."),
+        force: Annotated[bool, _opt.force()] = False,
+        quiet: Annotated[bool, _opt.quiet()] = False,
         known: str = typer.Option(None, "--known", help="Features whose weight the learner is "
                                   "told, comma-separated (e.g. step; 'none': none); default: "
                                   "each domain file's [beliefs] known."),
@@ -64,12 +64,13 @@ def register(app: typer.Typer) -> None:
         """Teach simulated learners every condition's curriculum and test them: proportion
         optimal by difficulty x condition (95% CIs) and the H1 overlap-correctness
         correlation, as JSON, CSV and plots."""
-        import sys
-
+        from cfteach.cli import _progress
         from cfteach.cli._common import check_out_dir, load_domain
-        from cfteach.simulate.sweep import run_sweep
 
+        _progress.set_quiet(quiet)
         check_out_dir(out)  # before the work: a bad --out must not cost the whole sweep
+        _check_names(split_list(conditions), split_list(learner))
+        from cfteach.simulate.sweep import run_sweep
         for name in split_list(domains) or []:  # the domain checks and the size guard
             loaded = load_domain(name, force=force)
             if known is not None:
@@ -87,7 +88,7 @@ def register(app: typer.Typer) -> None:
                 split_list(conditions), split_list(learner), n_learners=learners, seeds=seeds,
                 include_candidates=candidates, source=source, profile=profile,
                 human_models=human_models, seed=seed, backend=backend, n_workers=workers,
-                scheduler=scheduler, chunk_learners=chunk, progress=sys.stderr.isatty(),
+                scheduler=scheduler, chunk_learners=chunk, progress=_progress.enabled(),
                 teacher=settings, known=known)
         except (ValueError, FileNotFoundError, ImportError, ConnectionError) as err:
             typer.echo(f"Error: {err}", err=True)
@@ -96,6 +97,21 @@ def register(app: typer.Typer) -> None:
         _print_summary(summ)
         typer.echo(f"\nwrote {out}/results.json, answers.csv, beliefs.csv and "
                    f"{len(summ['figures'])} figures")
+
+
+def _check_names(conditions: list[str] | None, learners: list[str] | None) -> None:
+    """Unknown conditions and learner models: one line with a close match, before work."""
+    from cfteach.cli._common import check_choice, did_you_mean, fail
+    from cfteach.simulate.learners import LEARNER_MODELS
+    from cfteach.simulate.sweep import NO_TEACHING, SWEEP_CONDITIONS
+
+    allowed = (*SWEEP_CONDITIONS, NO_TEACHING)
+    bad = [c for c in conditions or [] if c not in allowed]
+    if bad:  # the sweep's own words, and a close match
+        fail(f"unknown condition(s) {bad}; choose from {', '.join(allowed)}"
+             + did_you_mean(bad[0], allowed))
+    for spec in learners or []:
+        check_choice(spec.split(":")[0], tuple(LEARNER_MODELS), "--learner-model")
 
 
 def _teacher_settings(pairs: list[str] | None) -> dict:

@@ -1,17 +1,19 @@
 """`cfteach serve` and `cfteach study init|export|progress`: run the user study."""
 
-from __future__ import annotations
-
 import json
 import os
 from pathlib import Path
+from typing import Annotated
 
 import typer
+
+from cfteach.cli import _options as _opt
 
 study_app = typer.Typer(help="Create a study folder, export its data, watch its progress.",
                         no_args_is_help=True)
 
 DEFAULT_DOMAINS = ("delivery", "tiles", "skateboard")
+_PAPER_CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
 
 
 def _sources_from_dir(src: Path, domains: list[str],  # noqa: ANN202
@@ -52,13 +54,13 @@ def _read_consent(path: Path | None) -> str | None:
 
 @study_app.command("init")
 def init(
-    out: Path = typer.Option(..., "--out", help="Study folder to create."),
+    out: Path = typer.Option(..., "--out", "-o", help="Study folder to create."),
     source: Path | None = typer.Option(None, "--from", help="Output folder of `cfteach "
                                        "reproduce` (DIR/<domain>/<condition>.json, tests.json)."),
     toy: bool = typer.Option(False, "--toy", help="A tiny 3-domain study for trying things."),
     preview: bool = typer.Option(False, "--preview", help="Placeholder demonstrations and "
                                  "tests on the real domains (not the paper's), to preview."),
-    domains: str = typer.Option(",".join(DEFAULT_DOMAINS), help="Comma-separated domains."),
+    domains: Annotated[list[str] | None, _opt.domain_list(", ".join(DEFAULT_DOMAINS))] = None,
     profile: str = typer.Option("default", help="Teaching profile when generating."),
     seed: int = typer.Option(0, help="Seed when generating curricula and tests."),
     title: str = typer.Option("Machine Teaching Study", help="Page title."),
@@ -74,9 +76,9 @@ def init(
                                          "its assignment cell after this long."),
     consent: Path | None = typer.Option(None, "--consent", help="HTML file with your consent "
                                         "text (no scripts), shown above the check boxes."),
-    conditions: str = typer.Option("baseline,feature_only,counterfactual_only,proposed",
-                                   "--conditions", help="Comma-separated conditions to assign: "
-                                   "any of the paper's four and closed_loop."),
+    conditions: list[str] | None = typer.Option(
+        None, "--condition", "-c", help="Conditions to assign: any of the paper's four and "
+        f"closed_loop ({_opt.LIST_NOTE}). Default: the paper's four."),
     teacher: list[str] = typer.Option(None, "--teacher", help="closed_loop teacher settings "
                                       "as field=value (comma-separated or repeated), e.g. "
                                       "max_items=12; see docs/closed-loop.md."),
@@ -87,9 +89,12 @@ def init(
                                      "weight the learner is told, comma-separated (e.g. step; "
                                      "'none': none); default: each domain file's [beliefs] "
                                      "known."),
+    quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """Write a study folder (study.json) from curricula and test sets."""
+    from cfteach.cli import _progress
     from cfteach.cli._common import check_out_dir, fail, study_sessions
+    from cfteach.cli._lists import split_list
     from cfteach.cli.simulate_cmd import _teacher_settings
     from cfteach.study.build import (
         check_conditions,
@@ -99,6 +104,7 @@ def init(
         toy_sources,
     )
 
+    _progress.set_quiet(quiet)
     check_out_dir(out)
     n_sessions = study_sessions(f"sqlite:///{out / 'study.db'}")
     if n_sessions and not force:
@@ -106,12 +112,16 @@ def init(
              "replacing study.json would detach them from their study: choose another "
              "folder, or pass --force")
 
-    names = [d.strip() for d in domains.split(",") if d.strip()]
+    names = split_list(domains) or list(DEFAULT_DOMAINS)
     try:
-        chosen = check_conditions(conditions.split(","))
+        chosen = check_conditions(split_list(conditions) or list(_PAPER_CONDITIONS))
         settings = _teacher_settings([x for t in teacher or [] for x in t.split(",") if x])
     except ValueError as e:
-        fail(str(e))
+        from cfteach.cli._common import did_you_mean
+        from cfteach.study.build import ALL_CONDITIONS
+
+        bad = [c for c in split_list(conditions) or [] if c not in ALL_CONDITIONS]
+        fail(str(e) + (did_you_mean(bad[0], ALL_CONDITIONS) if bad else ""))
     if not (toy or preview or source is not None):  # teaching here: check domains first
         from cfteach.cli._common import load_domain
 
@@ -134,8 +144,8 @@ def init(
         elif source is not None:
             sources = _sources_from_dir(source, names, chosen)
         else:
-            sources = teaching_sources(names, profile=profile, seed=seed, progress=True,
-                                       known=known)
+            sources = teaching_sources(names, profile=profile, seed=seed,
+                                       progress=_progress.enabled(), known=known)
         path = init_study(out, sources, title=title, completion_code=completion_code,
                           screened_out_code=screened_out_code, no_consent_code=no_consent_code,
                           completion_url=completion_url,
@@ -149,18 +159,20 @@ def init(
 
 @study_app.command("export")
 def export(
-    db: str = typer.Option(..., "--db", help="Database URL, e.g. sqlite:///study/study.db"),
-    out: Path = typer.Option(..., "--out", help="Folder for the CSV files."),
+    study: Annotated[Path, _opt.study()] = Path("study"),
+    db: Annotated[str | None, _opt.db()] = None,
+    out: Path = typer.Option(..., "--out", "-o", help="Folder for the CSV files."),
     include_previews: bool = typer.Option(False, help="Also export preview/test sessions."),
 ) -> None:
     """Write tidy CSVs (participants, test responses, Likert, demo views) + dictionary."""
-    from cfteach.cli._common import check_out_dir, fail, sqlite_path, study_sessions
+    from cfteach.cli._common import check_out_dir, fail, study_sessions
     from cfteach.study.export import export_csv
 
     check_out_dir(out)
-    path = sqlite_path(db)
-    if path is not None and not path.is_file():
-        fail(f"--db {db}: no database file at {path} (export never creates one)")
+    db = db or f"sqlite:///{study / 'study.db'}"
+    from cfteach.cli._checks import check_db_url
+
+    check_db_url(db, must_exist=True)  # export never creates a database
     if study_sessions(db) is None:
         fail(f"--db {db}: not a cfteach study database (no sessions table)")
 
@@ -171,8 +183,8 @@ def export(
 
 @study_app.command("progress")
 def progress(
-    study: Path = typer.Option(Path("study"), "--study", help="Study folder."),
-    db: str | None = typer.Option(None, "--db", help="Database URL (default: in the folder)."),
+    study: Annotated[Path, _opt.study()] = Path("study"),
+    db: Annotated[str | None, _opt.db()] = None,
 ) -> None:
     """Print how full each assignment cell is."""
     from cfteach.study.config import load_study
@@ -183,6 +195,10 @@ def progress(
         typer.echo(f"Error: no study at {study / 'study.json'}: create one with "
                    "`cfteach study init`", err=True)
         raise typer.Exit(2)
+    if db is not None:
+        from cfteach.cli._checks import check_db_url
+
+        check_db_url(db)
     engine = make_engine(db or f"sqlite:///{study / 'study.db'}")
     upgrade(engine)
     p = StudyService(engine, load_study(study)).progress()
@@ -196,12 +212,16 @@ def progress(
 @study_app.command("screenshots")
 def screenshots(
     study: Path = typer.Option(Path("study"), "--study", help="Study folder."),
-    out: Path = typer.Option(Path("screenshots"), "--out", help="Folder for the PNG files."),
+    out: Path = typer.Option(Path("screenshots"), "--out", "-o",
+                             help="Folder for the PNG files."),
     prefix: str = typer.Option("study-", help="File name prefix."),
     chromium: str = typer.Option("/usr/bin/chromium", help="Chromium executable."),
 ) -> None:
     """Save a PNG of every kind of page (headless Chromium, throw-away database)."""
+    from cfteach.cli._common import check_out_dir
     from cfteach.study.screenshots import take_screenshots
+
+    check_out_dir(out)
 
     for p in take_screenshots(study, out, prefix=prefix, chromium=chromium):
         typer.echo(str(p))
@@ -232,9 +252,22 @@ def serve(
     new_version: bool = typer.Option(
         False, "--new-version", help="Start even though sessions are in progress on an "
         "older study file this database does not hold (they can then not finish)."),
+    quiet: Annotated[bool, _opt.quiet()] = False,
 ) -> None:
     """Run the study server (participants open /?PROLIFIC_PID=...&STUDY_ID=...&SESSION_ID=...)."""
     import secrets
+
+    from cfteach.cli import _progress
+    from cfteach.cli._checks import check_db_url, check_port
+
+    _progress.set_quiet(quiet)
+    if not (study / "study.json").is_file():
+        typer.echo(f"Error: no study at {study / 'study.json'}: create one with "
+                   f"`cfteach study init --out {study}`", err=True)
+        raise typer.Exit(2)
+    check_port(host, port)  # each one line, before anything is printed or started
+    if db is not None:
+        check_db_url(db)
 
     import uvicorn
 
@@ -242,17 +275,14 @@ def serve(
     from cfteach.study.livesrv import server_config
     from cfteach.study.server import create_app
 
-    if not (study / "study.json").is_file():
-        typer.echo(f"Error: no study at {study / 'study.json'}: create one with "
-                   f"`cfteach study init --out {study}`", err=True)
-        raise typer.Exit(2)
     token = researcher_token or secrets.token_urlsafe(16)
     try:
-        app = create_app(study, db, researcher_token=token,
-                         sessions_per_minute=sessions_per_minute,
-                         events_per_minute=events_per_minute,
-                         auth_failures_per_minute=auth_failures_per_minute,
-                         new_version=new_version)
+        with _progress.busy("preparing the study"):
+            app = create_app(study, db, researcher_token=token,
+                             sessions_per_minute=sessions_per_minute,
+                             events_per_minute=events_per_minute,
+                             auth_failures_per_minute=auth_failures_per_minute,
+                             new_version=new_version)
     except StudyError as e:
         typer.echo(f"Error: {e}", err=True)
         raise typer.Exit(1) from None

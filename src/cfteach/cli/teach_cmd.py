@@ -4,15 +4,14 @@ Both print JSON (docs/schemas.md) or write it with --out. Heavy imports happen i
 commands so `cfteach --help` stays fast.
 """
 
-from __future__ import annotations
-
 import json
-import sys
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
+from cfteach.cli import _options as _opt
+from cfteach.cli import _progress
 from cfteach.cli._common import (
     ENVS_HELP,
     check_out_file,
@@ -49,7 +48,6 @@ def _known_of(dom: Any, known: str | None) -> tuple[str, ...] | None:
 _FORCE_HELP = "Go on even when the size estimate exceeds the free memory."
 _BACKEND_HELP = ("Where each round's planning and geometry run: local, dask or ray "
                  "(docs/parallel.md); the result is the same.")
-_WORKERS_HELP = "Worker processes (default: 1 = this process only, no pool; dask/ray: all)."
 _SCHEDULER_HELP = "Dask scheduler / Ray address (default: start a local cluster)."
 
 
@@ -93,9 +91,17 @@ def _show(cur_json: dict[str, Any], domain: Any) -> None:
         from cfteach import render
     except ImportError:  # pragma: no cover - render is part of the package
         render = None
+    labels = dict(zip(domain.feature_names, domain.feature_labels, strict=True))
+
+    def masked(name: str | None) -> str:  # the legend's word first, the JSON's name after
+        if name is None:
+            return "none"
+        label = labels.get(name, name).lower()
+        return label if label == name else f"{label} ({name})"
+
     for i, demo in enumerate(cur_json["demos"], 1):
         head = (f"demo {i}: env {demo['env_code']}  gain {demo['knowledge_gain']:.3f}  "
-                f"mask {demo['masked_feature']}  actions {' '.join(demo['actions'])}")
+                f"mask {masked(demo['masked_feature'])}  actions {' '.join(demo['actions'])}")
         typer.echo(head, err=True)
         if render is not None:
             inst = domain.instance(demo["env_index"])
@@ -133,9 +139,10 @@ def register(app: typer.Typer) -> None:
         force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
         envs: Annotated[str | None, typer.Option("--envs", help=ENVS_HELP)] = None,
         backend: Annotated[str, typer.Option(help=_BACKEND_HELP)] = "local",
-        workers: Annotated[int | None, typer.Option(help=_WORKERS_HELP)] = None,
+        workers: Annotated[int | None, _opt.workers()] = None,
         scheduler: Annotated[str | None, typer.Option(help=_SCHEDULER_HELP)] = None,
         known: Annotated[str | None, typer.Option("--known", help=_KNOWN_HELP)] = None,
+        quiet: Annotated[bool, _opt.quiet()] = False,
     ) -> None:
         """Choose the demonstrations one study condition shows; print the curriculum JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -158,6 +165,7 @@ def register(app: typer.Typer) -> None:
             fail(f"--seed must be 0 or more, got {seed}")
         if proportion is not None and not 0 < proportion <= 1:
             fail(f"--proportion must lie in (0, 1], got {proportion}")
+        _progress.set_quiet(quiet)
         check_parallel(backend, workers, scheduler)
         check_out_file(out)
         dom = load_domain(domain, force=force, envs=envs)
@@ -166,7 +174,7 @@ def register(app: typer.Typer) -> None:
             cur = teach(dom, condition, profile=profile, seed=seed, known=known_list,
                         human_models=human_models, max_demos=max_demos,
                         proportion=proportion, unbounded_models=unbounded_models,
-                        progress=sys.stderr.isatty(), envs=_envs_of(dom, envs),
+                        progress=_progress.enabled(), envs=_envs_of(dom, envs),
                         backend=backend, workers=workers, scheduler=scheduler)
         except (ValueError, TypeError) as exc:
             fail(str(exc))
@@ -198,9 +206,10 @@ def register(app: typer.Typer) -> None:
         force: Annotated[bool, typer.Option("--force", help=_FORCE_HELP)] = False,
         envs: Annotated[str | None, typer.Option("--envs", help=ENVS_HELP)] = None,
         backend: Annotated[str, typer.Option(help=_BACKEND_HELP)] = "local",
-        workers: Annotated[int | None, typer.Option(help=_WORKERS_HELP)] = None,
+        workers: Annotated[int | None, _opt.workers()] = None,
         scheduler: Annotated[str | None, typer.Option(help=_SCHEDULER_HELP)] = None,
         known: Annotated[str | None, typer.Option("--known", help=_KNOWN_HELP)] = None,
+        quiet: Annotated[bool, _opt.quiet()] = False,
     ) -> None:
         """Pick low / medium / high difficulty tests (Algorithm 2); print the tests JSON."""
         from cfteach.bec import UNBOUNDED_RULES
@@ -214,6 +223,7 @@ def register(app: typer.Typer) -> None:
             _check_choice(unbounded_models, tuple(UNBOUNDED_RULES), "--unbounded-models")
         if seed < 0:
             fail(f"--seed must be 0 or more, got {seed}")
+        _progress.set_quiet(quiet)
         check_parallel(backend, workers, scheduler)
         check_out_file(out)
         curricula = []
@@ -233,7 +243,7 @@ def register(app: typer.Typer) -> None:
                               per_level=per_level, human_models=human_models,
                               include_candidates=all_candidates,
                               unbounded_models=unbounded_models,
-                              progress=sys.stderr.isatty(), envs=_envs_of(dom, envs),
+                              progress=_progress.enabled(), envs=_envs_of(dom, envs),
                               backend=backend, workers=workers, scheduler=scheduler)
         except (ValueError, TypeError, KeyError) as exc:
             fail(str(exc))

@@ -5,7 +5,10 @@ no longer contains w*) nor a crash minutes later.
 * `static_findings(dom)`: instant checks on the file's numbers (features, w* and beliefs).
 * `planning_findings(dom, batch, values)`: from the exact values of w* on every instance:
   goals that cannot be reached, states that cannot reach the goal, reward loops w* pays for.
-* `check_domain(dom)`: both (compiles the domain; cached per domain object).
+* `goal_findings(dom, batch, values)`: per instance, a warning when no optimal path under w*
+  reaches the goal (an `exit` action that ends the episode earlier is worth more).
+* `check_domain(dom)`: all of them (compiles the domain; cached per domain object).
+* `CHECKS`: what each check verifies, as `cfteach check` prints it.
 * `require_sound(dom)`: raise `DomainCheckError` on the first error (teaching calls it).
 
 docs/domains.md ("Checks before planning") lists the rules.
@@ -21,12 +24,23 @@ import numpy as np
 
 from cfteach.domains.model import Domain
 
-__all__ = ["MIN_FEATURES", "DomainCheckError", "Finding", "check_domain", "errors_of",
-           "planning_findings", "require_sound", "static_findings"]
+__all__ = ["CHECKS", "MIN_FEATURES", "DomainCheckError", "Finding", "check_domain",
+           "errors_of", "goal_findings", "planning_findings", "require_sound",
+           "static_findings"]
 
 #: Beliefs are regions of the unit sphere S^(F-1); the geometry needs F >= 3.
 MIN_FEATURES = 3
 _TOL = 1e-12
+
+#: Every check, (code, what it verifies, whether it needs planning), in the order they run.
+CHECKS: tuple[tuple[str, str, bool], ...] = (
+    ("features", f"at least {MIN_FEATURES} features", False),
+    ("w_star", "w* inside the file's prior and posterior", False),
+    ("reward_loop", "no reward loop that w* pays for", True),
+    ("unreachable_goal", "every instance's goal (or an exit) reachable from its start", True),
+    ("dead_end", "no state from which the episode can no longer end", True),
+    ("goal_not_optimal", "some optimal path under w* reaches the goal (else a warning)", True),
+)
 
 
 @dataclass(frozen=True)
@@ -126,6 +140,47 @@ def planning_findings(dom: Domain, batch: Any, values: Any) -> list[Finding]:
     return out
 
 
+def goal_findings(dom: Domain, batch: Any, values: Any) -> list[Finding]:
+    """Per instance: a warning when no optimal path from the start reaches the goal. Only an
+    action with effect `exit` can end an episode elsewhere; without one, a finite value
+    already means that the goal is reached, so nothing is searched."""
+    from cfteach.mdp import tied_actions
+
+    exits = [k for k, a in enumerate(dom.action_specs) if a.effect == "exit"]
+    if not exits:
+        return []
+    out: list[Finding] = []
+    goal = list(dom.spec.goal)
+    for e in range(batch.E):
+        if not bool(values.bounded[e, 0]) or not np.isfinite(values.V[e, 0, 0]):
+            continue  # named by planning_findings as an error already
+        inst = batch.instances[e]
+        best = tied_actions(values.Q[e, 0])
+        seen, stack, reached = {0}, [0], False
+        while stack and not reached:
+            i = stack.pop()
+            state = batch.states[e][i]
+            for a in np.flatnonzero(best[i]):
+                nxt, _, term = inst.step(state, int(a))
+                if term:
+                    reached = inst.is_terminal(nxt)
+                    if reached:
+                        break
+                    continue
+                j = batch.state_index[e].get(nxt)
+                if j is not None and j not in seen:
+                    seen.add(j)
+                    stack.append(j)
+        if not reached:
+            names = ", ".join(dom.action_specs[k].name for k in exits)
+            out.append(Finding("warning", "goal_not_optimal", (
+                f"{dom.name}: instance {inst.index} (env code {list(inst.env_code)}): no "
+                f"optimal path under w* reaches the goal at {goal}; ending the episode with "
+                f"{names} is worth more, so demonstrations never show the goal (make "
+                f"{names} cost something, or check that the goal is not walled off)")))
+    return out
+
+
 _CACHE: weakref.WeakKeyDictionary[Domain, list[Finding]] = weakref.WeakKeyDictionary()
 
 
@@ -141,6 +196,7 @@ def check_domain(dom: Domain) -> list[Finding]:
         batch = compile_domain(dom)
         vals = value_iteration(batch, np.asarray(dom.weights, dtype=float)[None])
         found += planning_findings(dom, batch, vals)
+        found += goal_findings(dom, batch, vals)
     _CACHE[dom] = found
     return list(found)
 

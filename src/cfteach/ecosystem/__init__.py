@@ -12,7 +12,14 @@ from cfteach.ecosystem.episodes import (
     candidate_episodes,
     curriculum_episodes,
 )
-from cfteach.ecosystem.minari_io import check_replay, episode_metadata, load_dataset, write_dataset
+from cfteach.ecosystem.minari_io import (
+    check_replay,
+    dataset_exists,
+    episode_metadata,
+    load_dataset,
+    write_dataset,
+)
 
 __all__ = ["Episode", "answer_episodes", "candidate_episodes", "check_replay",
-           "curriculum_episodes", "episode_metadata", "load_dataset", "write_dataset"]
+           "curriculum_episodes", "dataset_exists", "episode_metadata", "load_dataset",
+           "write_dataset"]

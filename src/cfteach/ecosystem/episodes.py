@@ -72,17 +72,21 @@ def play(env: Any, env_code: str, start_state: dict[str, Any], actions: Sequence
 
 # ----------------------------------------------------------------- robot demonstrations
 def candidate_episodes(domain: Any, *, profile: str = "default",
-                       env_indices: Iterable[int] | None = None) -> list[Episode]:
+                       env_indices: Iterable[int] | None = None,
+                       progress: bool = False) -> list[Episode]:
     """Every candidate demonstration of `domain` (each reachable state of each instance,
     followed optimally under w* as `cfteach.bec.demo_set` plans it); `env_indices` keeps
-    only those instances."""
+    only those instances; `progress` shows bars (on stderr) for planning and replaying."""
+    from tqdm import tqdm
+
     from cfteach.bec.demos import demo_set
 
-    ds = demo_set(domain, profile)
+    with tqdm(total=None, desc="planning candidates", disable=not progress, leave=False):
+        ds = demo_set(domain, profile)
     env = episode_env(domain, max(1, int(ds.length.max())) + 1)
     keep = None if env_indices is None else {int(i) for i in env_indices}
     out = []
-    for d in range(ds.D):
+    for d in tqdm(range(ds.D), desc="episodes", disable=not progress, leave=False):
         inst = ds.instance(d)
         if keep is not None and inst.index not in keep:
             continue

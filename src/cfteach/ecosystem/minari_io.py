@@ -10,6 +10,8 @@ root (`MINARI_DATASETS_PATH`, else `~/.minari/datasets`), or `root=` when given.
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -90,23 +92,60 @@ def write_dataset(episodes: Sequence[Episode], dataset_id: str, domain: Any, *,
                              terminations=[False] * (len(e.actions) - 1) + [e.terminated],
                              truncations=[False] * (len(e.actions) - 1) + [not e.terminated])
                for k, e in enumerate(episodes)]
-    with minari_root(root):
-        if dataset_id in minari.list_local_datasets():
-            if not force:
-                raise ValueError(f"dataset {dataset_id!r} exists already (--force / force=True "
-                                 "replaces it)")
-            minari.delete_dataset(dataset_id)
-        with warnings.catch_warnings():  # Minari's advice to name a code link and an email
-            warnings.filterwarnings("ignore", category=UserWarning, module="minari")
-            ds = minari.create_dataset_from_buffers(
-                dataset_id, buffers, env=spec, eval_env=spec,
-                observation_space=env.observation_space, action_space=env.action_space,
-                algorithm_name="cfteach", author=author or "cfteach",
-                description=description or None, requirements=["cfteach"])
-        ds.storage.update_episode_metadata([_attrs(e.metadata) for e in episodes],
-                                           list(range(len(episodes))))
+    final_root = _root_path(root)
+    target = final_root / dataset_id
+    if (target / "data").exists() and not force:
+        raise ValueError(f"dataset {dataset_id!r} exists already (--force / force=True "
+                         "replaces it)")
+    final_root.mkdir(parents=True, exist_ok=True)
+    # Written in a hidden folder of the root (Minari lists no hidden folder) and moved into
+    # place at the end: an interrupted export leaves no dataset, never a partial one.
+    staging = Path(tempfile.mkdtemp(prefix=".cfteach-writing-", dir=final_root))
+    try:
+        with minari_root(staging):
+            with warnings.catch_warnings():  # Minari's advice to name a code link and email
+                warnings.filterwarnings("ignore", category=UserWarning, module="minari")
+                ds = minari.create_dataset_from_buffers(
+                    dataset_id, buffers, env=spec, eval_env=spec,
+                    observation_space=env.observation_space, action_space=env.action_space,
+                    algorithm_name="cfteach", author=author or "cfteach",
+                    description=description or None, requirements=["cfteach"])
+            ds.storage.update_episode_metadata([_attrs(e.metadata) for e in episodes],
+                                               list(range(len(episodes))))
+            del ds  # close its files before the move
+        _move_into_place(staging / dataset_id, target, staging)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    ds = load_dataset(dataset_id, final_root)
     env.close()
     return ds
+
+
+def _root_path(root: str | Path | None) -> Path:
+    """The Minari root a dataset goes to: `root`, else Minari's own setting."""
+    if root is not None:
+        return Path(root).resolve()
+    env = os.environ.get("MINARI_DATASETS_PATH")
+    return Path(env).resolve() if env else Path.home() / ".minari" / "datasets"
+
+
+def _move_into_place(written: Path, target: Path, staging: Path) -> None:
+    """Rename the finished dataset to its place (an old one is moved aside first and
+    deleted only once the new one is in)."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    old = None
+    if target.exists():
+        old = staging / ".replaced"
+        os.replace(target, old)
+    os.replace(written, target)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def dataset_exists(dataset_id: str, root: str | Path | None = None) -> bool:
+    """A local Minari dataset of that id exists (checked before any work)."""
+    _minari()
+    return (_root_path(root) / dataset_id / "data").exists()
 
 
 def _attrs(meta: dict[str, Any]) -> dict[str, Any]:
@@ -132,14 +171,17 @@ def episode_metadata(dataset: Any) -> list[dict[str, Any]]:
     return list(dataset.storage.get_episode_metadata(dataset.episode_indices))
 
 
-def check_replay(dataset: Any) -> int:
+def check_replay(dataset: Any, progress: bool = False) -> int:
     """Replay every episode step by step in `dataset.recover_environment()` and compare
     observations, rewards and endings with the recorded ones; returns the episodes checked
     (ValueError names the first difference)."""
     env = dataset.recover_environment()
     metas = episode_metadata(dataset)
+    from tqdm import tqdm
+
     n = 0
-    for ep, meta in zip(dataset.iterate_episodes(), metas, strict=True):
+    for ep, meta in tqdm(zip(dataset.iterate_episodes(), metas, strict=True), total=len(metas),
+                         desc="replaying", disable=not progress, leave=False):
         where = f"episode {ep.id}"
         obs, _ = env.reset(options=dict(meta["options"]))
         _same(obs, ep.observations[0], f"{where}: start observation")
