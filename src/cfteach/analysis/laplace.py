@@ -180,9 +180,10 @@ def pirls(
                 break
             step /= 2
         u0, ur = u0 + step * d0, ur + step * dr
-        done = abs(cur - new) < 1e-11 * (1 + abs(cur)) and step * max(
-            np.max(np.abs(d0), initial=0), np.max(np.abs(dr), initial=0)
-        ) < 1e-8
+        done = (
+            abs(cur - new) < 1e-11 * (1 + abs(cur))
+            and step * max(np.max(np.abs(d0), initial=0), np.max(np.abs(dr), initial=0)) < 1e-8
+        )
         cur = new
         if done:
             break
@@ -321,7 +322,11 @@ def fit(
         return out
 
     res = minimize(
-        obj, theta0, jac=grad, method="L-BFGS-B", bounds=[(0.0, None)] * k,
+        obj,
+        theta0,
+        jac=grad,
+        method="L-BFGS-B",
+        bounds=[(0.0, None)] * k,
         options={"ftol": 1e-13, "gtol": 1e-7, "maxiter": 200},
     )
     theta = np.where(res.x < SINGULAR_TOL, 0.0, res.x)

@@ -5,13 +5,14 @@ from __future__ import annotations
 import json
 import sys
 import warnings
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 from cfteach.analysis.aggregate import Frames, build_frames
 from cfteach.analysis.exclusions import ExclusionConfig, apply_exclusions, quality_flags
-from cfteach.analysis.io import CONDITIONS, StudyExport, load_export
+from cfteach.analysis.io import CONDITIONS, LIKERT_ITEMS, StudyExport, load_export
 from cfteach.jsonable import to_jsonable
 
 PADJUST_METHODS = ("holm", "bonf", "sidak", "fdr_bh", "fdr_by", "none")
@@ -25,8 +26,11 @@ class AnalysisConfig:
     padjust: str = "holm"  # correction of the within-subjects post hocs and pairwise MWUs
     authors_tukey: bool = True  # also report the authors' between-groups Tukey for H1
     figures: bool = True
+    nagq: int = 1  # GLMM: 1 = glmer's Laplace fit; 0 = lme4's faster nAGQ = 0 scheme
 
     def __post_init__(self) -> None:
+        if self.nagq not in (0, 1):
+            raise ValueError(f"nagq must be 0 or 1, got {self.nagq!r}")
         if self.padjust not in PADJUST_METHODS:
             raise ValueError(
                 f"padjust must be one of {', '.join(PADJUST_METHODS)}, got {self.padjust!r}"
@@ -81,7 +85,7 @@ def compute_results(
             "conditions_missing": [c for c in CONDITIONS if not by_cond.get(c, 0)],
         },
         "exclusions": excluded.to_dict(orient="records"),
-        "sensitivity": sensitivity(export, cfg.exclusions),
+        "sensitivity": guarded("sensitivity", sensitivity, export, cfg.exclusions),
         "quality_flags": quality_flags(kept.participants).to_dict(orient="records"),
         **results,
     }
@@ -98,32 +102,75 @@ def _nobody_left(export: StudyExport, excluded: Any) -> str:
     )
 
 
+def guarded(step: str, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """Run one analysis step; if it fails, record why instead of losing every other step.
+
+    A pilot with a perfect cell used to abort the whole analysis in the GLMM (no
+    results.json, no report); now the failing step becomes {"skipped": "failed: ..."} with
+    the error named, a warning is issued, and the report says the step was not computed.
+    """
+    try:
+        return fn(*args, **kwargs)
+    except Exception as exc:  # noqa: BLE001 - one model failing never stops the others
+        reason = f"failed: {type(exc).__name__}: {' '.join(str(exc).split()) or 'no message'}"
+        warnings.warn(f"analysis step {step} {reason}", RuntimeWarning, stacklevel=2)
+        return {"skipped": reason}
+
+
 def _all_statistics(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str, Any]:
     from cfteach.analysis.descriptives import descriptives
     from cfteach.analysis.factorial import full_anova
     from cfteach.analysis.glmm import trial_glmm
     from cfteach.analysis.ordinal import ordinal_models
 
-    full = full_anova(stats.complete_cells(frames.cells))
+    full = guarded("full_anova", full_anova, stats.complete_cells(frames.cells))
     return {
         "full_anova": full.get("terms", []),
         "full_anova_participants": full.get("participants", []),
         "full_anova_skipped": full.get("skipped"),
         "full_anova_detail": {k: v for k, v in full.items() if k not in ("terms", "participants")},
-        "glmm": trial_glmm(frames.tests),
-        "descriptives": descriptives(frames),
-        "icc": stats.icc_domains(frames),
+        "glmm": guarded("glmm", trial_glmm, frames.tests, nagq=cfg.nagq),
+        "descriptives": guarded("descriptives", descriptives, frames),
+        "icc": guarded("icc", stats.icc_domains, frames),
         "h1": {
-            "rm_anova": stats.rm_anova_difficulty(frames),
-            "posthoc": stats.posthoc_difficulty(frames, cfg.padjust, cfg.authors_tukey),
-            "spearman": stats.spearman_confidence(frames),
-            "rm_corr": stats.rm_corr_confidence(frames),
+            "rm_anova": guarded("h1.rm_anova", stats.rm_anova_difficulty, frames),
+            "posthoc": _posthoc(frames, cfg, stats),
+            "spearman": guarded("h1.spearman", stats.spearman_confidence, frames),
+            "rm_corr": guarded("h1.rm_corr", stats.rm_corr_confidence, frames),
         },
-        "mixed": {f: stats.mixed_anova(frames, f) for f in stats.BETWEEN_FACTORS},
-        "likert": stats.likert_tests(frames, cfg.padjust),
-        "ordinal": ordinal_models(frames),
-        "exploratory": stats.exploratory(frames),
+        "mixed": {
+            f: guarded(f"mixed.{f}", stats.mixed_anova, frames, f) for f in stats.BETWEEN_FACTORS
+        },
+        "likert": _likert(frames, cfg, stats),
+        "ordinal": guarded("ordinal", ordinal_models, frames),
+        "exploratory": guarded("exploratory", stats.exploratory, frames),
     }
+
+
+def _posthoc(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str, Any]:
+    res = guarded(
+        "h1.posthoc", stats.posthoc_difficulty, frames, cfg.padjust, cfg.authors_tukey
+    )
+    return {"paired": res} if set(res) == {"skipped"} else res
+
+
+def _likert(frames: Frames, cfg: AnalysisConfig, stats: Any) -> dict[str, Any]:
+    res = guarded("likert", stats.likert_tests, frames, cfg.padjust)
+    if set(res) == {"skipped"}:  # the report reads one entry per item
+        return {"padjust": cfg.padjust, **{item: res for item in LIKERT_ITEMS}}
+    return res
+
+
+def skipped_steps(results: dict[str, Any], prefix: str = "") -> list[str]:
+    """Dotted names of every step that failed (skipped with 'failed: ...')."""
+    out = []
+    for k, v in results.items():
+        if isinstance(v, dict):
+            if str(v.get("skipped", "")).startswith("failed:"):
+                out.append(prefix + k)
+            else:
+                out += skipped_steps(v, f"{prefix}{k}.")
+    return out
 
 
 def analyze(
