@@ -195,6 +195,11 @@ def analyze(
     with tqdm(total=4, desc="analyze", unit="step", file=sys.stderr, disable=disable) as bar:
         bar.set_postfix_str("load")
         from cfteach.analysis import closed_loop  # closed_loop participants: their own section
+
+        by_condition = closed_loop.sessions(export_dir)
+        n_closed = by_condition.get(closed_loop.CLOSED_LOOP, 0)
+        if n_closed and n_closed == sum(by_condition.values()):
+            return _closed_loop_only(export_dir, out, n_closed, note)
         with closed_loop.paper_only(export_dir) as paper_dir:
             export = load_export(paper_dir)
         bar.update()
@@ -207,11 +212,17 @@ def analyze(
         if cfg.figures:
             from cfteach.analysis.figures import make_figures
 
-            figures = make_figures(frames, results, out / "figures")
+            figures = guarded("figures", make_figures, frames, results, out / "figures")
+            if set(figures) == {"skipped"}:
+                results["figures_skipped"] = figures["skipped"]
+                figures = {}
         bar.update()
         bar.set_postfix_str("report")
         results["figures"] = {k: [f"figures/{n}" for n in v] for k, v in figures.items()}
-        if (cl := closed_loop.compare(export_dir)) is not None:
+        results["participants"]["n_sessions"] = int(sum(by_condition.values()))
+        results["participants"]["n_closed_loop"] = int(n_closed)
+        if n_closed:
+            cl = guarded("closed_loop", closed_loop.compare, export_dir)
             results["closed_loop"] = to_jsonable(cl)
         (out / "results.json").write_text(
             json.dumps(results, indent=2, allow_nan=False) + "\n", encoding="utf-8"
@@ -219,6 +230,41 @@ def analyze(
         from cfteach.analysis.report import write_report
 
         write_report(results, figures, out)
-        closed_loop.add_to_report(results.get("closed_loop"), out)
+        if "skipped" not in results.get("closed_loop", {"skipped": None}):
+            closed_loop.add_to_report(results["closed_loop"], out)
         bar.update()
+    return results
+
+
+def _closed_loop_only(
+    export_dir: str | Path, out: Path, n_closed: int, note: str | None
+) -> dict[str, Any]:
+    """An export of closed_loop sessions only: the paper's 2 x 2 statistics have nothing to
+    work on, so the results and the report hold the sessions and the closed-loop section."""
+    from cfteach import __version__
+    from cfteach.analysis import closed_loop
+    from cfteach.analysis.report import write_closed_loop_only_report
+
+    why = (
+        f"the export has only closed_loop sessions ({n_closed}); the paper's statistics "
+        "compare its four conditions"
+    )
+    results: dict[str, Any] = {
+        "meta": {"export_dir": str(export_dir), "note": note, "cfteach_version": __version__},
+        "participants": {
+            "n_sessions": n_closed,
+            "n_closed_loop": n_closed,
+            "n_retained": 0,
+            "retained_by_condition": dict.fromkeys(CONDITIONS, 0),
+        },
+        "paper_analysis": {"skipped": why},
+        "closed_loop": to_jsonable(guarded("closed_loop", closed_loop.compare, export_dir)),
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "results.json").write_text(
+        json.dumps(results, indent=2, allow_nan=False) + "\n", encoding="utf-8"
+    )
+    write_closed_loop_only_report(results, out)
+    if "skipped" not in results["closed_loop"]:
+        closed_loop.add_to_report(results["closed_loop"], out)
     return results
