@@ -132,11 +132,19 @@ def _skip_reason(tests: pd.DataFrame) -> str | None:
     return None
 
 
-def trial_glmm(tests: pd.DataFrame, *, nagq: int = 1, se: str = "hessian") -> dict[str, Any]:
+def trial_glmm(
+    tests: pd.DataFrame,
+    *,
+    nagq: int = 1,
+    se: str = "hessian",
+    start: dict[str, Any] | None = None,
+) -> dict[str, Any]:
     """Fit the trial-level GLMM on the long test frame (one row per answer).
 
     `nagq` 1 (default) is glmer's Laplace fit; 0 is lme4's faster nAGQ = 0 scheme, kept as
     an explicit option (its estimates are pulled towards 0). `se`: see `laplace.fit`.
+    `start`: a previous result of this function to start from (simulations); the optimum
+    does not depend on it.
     """
     from threadpoolctl import threadpool_limits
 
@@ -179,7 +187,7 @@ def trial_glmm(tests: pd.DataFrame, *, nagq: int = 1, se: str = "hessian") -> di
         prior_precision=None if prior is None else 1.0 / prior**2,
     )
     with threadpool_limits(1):  # small solves: BLAS threads only contend
-        fit = laplace.fit(data, nagq=nagq, se=se)
+        fit = laplace.fit(data, nagq=nagq, se=se, **_warm(start, len(names)))
     sd = {"participant": float(fit["theta"][0]), "item": float(fit["theta"][1])}
     singular = [k for k, s in zip(sd, fit["singular"], strict=True) if s]
     if singular:
@@ -213,6 +221,16 @@ def trial_glmm(tests: pd.DataFrame, *, nagq: int = 1, se: str = "hessian") -> di
         "n_observations": int(len(y)),
         "n_participants": int(len(pid.categories)),
         "n_items": int(len(item.categories)),
+    }
+
+
+def _warm(start: dict[str, Any] | None, p: int) -> dict[str, Any]:
+    if not start or "terms" not in start or len(start["terms"]) + 1 != p:
+        return {}
+    sd = start["random_effect_sd"]
+    return {
+        "theta_start": np.array([max(sd["participant"], 0.05), max(sd["item"], 0.05)]),
+        "beta_start": np.r_[start["intercept_log_odds"], [t["log_odds"] for t in start["terms"]]],
     }
 
 
