@@ -88,3 +88,35 @@ def test_analyze_reports_closed_loop_and_keeps_the_paper_analysis(tmp_path: Path
     md = (tmp_path / "out" / "report.md").read_text()
     assert f"## {CL.SECTION}" in md and "| closed_loop | low | 2 | 1.000" in md
     assert CL.SECTION in (tmp_path / "out" / "report.html").read_text()
+
+
+def test_every_session_is_counted(tmp_path: Path) -> None:
+    res = analyze(_with_closed_loop(tmp_path / "ex"), tmp_path / "out",
+                  AnalysisConfig(figures=False), progress=False)
+    assert res["participants"]["n_sessions"] == 26  # 24 of the paper's conditions + 2
+    assert res["participants"]["n_closed_loop"] == 2
+    md = (tmp_path / "out" / "report.md").read_text()
+    assert "26 sessions in the export (2 closed_loop, compared in their own section" in md
+
+
+def test_closed_loop_only_export_gets_its_section(tmp_path: Path) -> None:
+    from cfteach.cli import app
+    from cli_runner import WideRunner
+
+    ex = _with_closed_loop(tmp_path / "ex")
+    for name in CL.CONDITION_FILES:
+        df = pd.read_csv(ex / name, dtype=str, keep_default_na=False)
+        df[df["condition"] == "closed_loop"].to_csv(ex / name, index=False)
+    out = tmp_path / "out"
+    result = WideRunner().invoke(app, ["analyze", str(ex), "--out", str(out), "--no-figures"])
+    assert result.exit_code == 0, result.output
+    assert "header but no rows" not in result.output
+    res = json.loads((out / "results.json").read_text())
+    assert res["participants"]["n_sessions"] == 2
+    assert "only closed_loop sessions (2)" in res["paper_analysis"]["skipped"]
+    assert res["closed_loop"]["participants"] == {"closed_loop": 2}
+    by = {(r["condition"], r["difficulty"]): r for r in res["closed_loop"]["by_difficulty"]}
+    assert by["closed_loop", "medium"]["regret"]["mean"] == pytest.approx(1.5)
+    md = (out / "report.md").read_text()
+    assert "2 sessions in the export, all closed_loop" in md
+    assert f"## {CL.SECTION}" in md and "| closed_loop | low | 2 | 1.000" in md

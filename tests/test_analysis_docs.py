@@ -35,7 +35,6 @@ def test_bash_examples_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> N
     assert (tmp_path / "demo-report" / "report.html").exists()
 
 
-@pytest.mark.slow
 def _close(a: object, b: object) -> bool:
     """Equal JSON, floats within 1e-4 relative or 1e-9 absolute: a difference between library
     versions (pandas, numpy: 1 ulp; the GLMM's optimiser: up to 6e-6 relative, and tiny p
@@ -63,6 +62,7 @@ def test_close_tolerates_one_ulp_only() -> None:
     assert not _close({"a": "x"}, {"a": "y"})
 
 
+@pytest.mark.slow
 def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
     """Regenerating the example from its seed gives the committed numbers."""
     committed = json.loads((EXAMPLE / "results.json").read_text(encoding="utf-8"))
@@ -99,6 +99,24 @@ def test_committed_example_is_up_to_date(tmp_path: Path) -> None:
     for files in committed["figures"].values():
         for f in files:
             assert (EXAMPLE / f).exists()
+
+
+def _differences(a: object, b: object, path: str, tol: float) -> list[str]:
+    """Where two JSON values differ: structure and strings exactly, numbers to `tol`
+    (relative, and absolute near 0)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        if set(a) != set(b):
+            return [f"{path}: keys {sorted(set(a) ^ set(b))}"]
+        return [d for k in a for d in _differences(a[k], b[k], f"{path}.{k}", tol)]
+    if isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            return [f"{path}: length {len(a)} vs {len(b)}"]
+        return [d for i, (x, y) in enumerate(zip(a, b, strict=True))
+                for d in _differences(x, y, f"{path}[{i}]", tol)]
+    num = (int, float)
+    if isinstance(a, num) and isinstance(b, num) and not isinstance(a, bool):
+        return [] if a == pytest.approx(b, rel=tol, abs=tol) else [f"{path}: {a} vs {b}"]
+    return [] if a == b else [f"{path}: {a!r} vs {b!r}"]
 
 
 def test_python_examples_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -82,3 +82,31 @@ def test_in_results_and_skipped_for_pilots() -> None:
         assert t["ci_low"] <= t["odds_ratio"] <= t["ci_high"]
     r3, _ = compute_results(generate(SyntheticConfig(n_participants=3, seed=2)))
     assert "needs at least 2 participants in each of the four conditions" in r3["glmm"]["skipped"]
+
+
+def test_constant_domain_position_is_said_not_claimed() -> None:
+    from cfteach.analysis.report import build_document
+
+    e = generate(SyntheticConfig(n_participants=24, seed=5))
+    tests = e.tests.assign(domain_position=2)
+    r, _ = compute_results(type(e)(e.participants, tests, e.likert, e.demo_views))
+    g = r["glmm"]
+    assert "domain_position" not in {t["term"] for t in g["terms"]}
+    assert g["covariates_dropped"] == {"domain_position": "the same (2) for every answer"}
+    assert "domain_position" not in g["covariates"]
+    text = build_document(r, {}).markdown()
+    assert "with domain as covariates" in text
+    assert "domain position as covariates" not in text
+    assert "Covariate domain_position not included: the same (2) for every answer." in text
+
+
+def test_nagq0_is_an_explicit_option_and_named() -> None:
+    t = _tests(n_participants=48, seed=0)
+    g0, g1 = trial_glmm(t, nagq=0), trial_glmm(t)
+    assert "nAGQ = 0" in g0["method"] and "nAGQ = 1" in g1["method"]
+    assert (g0["nAGQ"], g1["nAGQ"]) == (0, 1)
+    # nAGQ = 0 pulls the difficulty estimates towards 0 (the issue's -1.104 vs -1.141)
+    b0 = {x["term"]: x["log_odds"] for x in g0["terms"]}
+    b1 = {x["term"]: x["log_odds"] for x in g1["terms"]}
+    assert abs(b0["difficulty[high]"]) < abs(b1["difficulty[high]"])
+    assert g1["deviance"] <= g0["deviance"] + 1e-6  # the Laplace optimum is the lower one

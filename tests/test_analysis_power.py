@@ -47,5 +47,10 @@ def test_cli_power_writes_table_and_plot(tmp_path: Path) -> None:
     table = pd.read_csv(tmp_path / "power.csv")
     assert sorted(set(table["n_participants"])) == [8, 12]
     assert "| 8 |" in res.output and "| 12 |" in res.output
+    md = (tmp_path / "power.md").read_text(encoding="utf-8")
+    for _, r in table.iterrows():  # every rate with the interval power.csv has
+        cell = f"{100 * r['power']:.0f}% [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
+        assert cell in md
+    assert "Wilson 95% interval over 2 simulated studies" in md
     bad = CliRunner().invoke(app, ["power", "--n", "4", "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "--n must be at least 8" in bad.output

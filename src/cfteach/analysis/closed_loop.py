@@ -42,6 +42,15 @@ def has_closed_loop(export_dir: str | Path) -> bool:
     return p.is_file() and bool((_read(p)["condition"] == CLOSED_LOOP).any())
 
 
+def sessions(export_dir: str | Path) -> dict[str, int]:
+    """Every session participants.csv holds, by condition (closed_loop included)."""
+    p = Path(export_dir) / "participants.csv"
+    if not p.is_file():
+        return {}
+    counts = _read(p)["condition"].astype(str).value_counts()
+    return {str(c): int(n) for c, n in counts.items()}
+
+
 @contextmanager
 def paper_only(export_dir: str | Path) -> Iterator[Path]:
     """The export as the paper's analysis reads it: without closed_loop participants (a

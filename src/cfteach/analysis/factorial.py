@@ -112,6 +112,8 @@ def full_anova(cells: pd.DataFrame, dv: str = "optimal") -> dict[str, Any]:
         return {"skipped": f"needs at least 6 participants with all three difficulties (have {n})"}
     y = wide.to_numpy(float)
     k = y.shape[1]
+    # below this an error SS is rounding noise: F is undefined, not 2.6 (all-right pilots)
+    tiny = 1e-12 * max(float(np.sum((y - y.mean()) ** 2)), 1e-12 * y.size)
     means = y.mean(axis=1)
     contrasts = y @ _helmert(k)  # n x (k-1)
     # between stratum: SS on the scale of the k cells per participant
@@ -134,10 +136,10 @@ def full_anova(cells: pd.DataFrame, dv: str = "optimal") -> dict[str, Any]:
     for factors, ss in ss_b.items():
         if not factors:
             continue
-        terms.append(_row(_term_name(factors), ss, 1, ssr_b, df_b, None, False))
+        terms.append(_row(_term_name(factors), ss, 1, ssr_b, df_b, None, False, tiny))
     for factors, ss in ss_w.items():
         name = _term_name((*factors, WITHIN))
-        terms.append(_row(name, ss, k - 1, ssr_w, df_w, eps, rejected))
+        terms.append(_row(name, ss, k - 1, ssr_w, df_w, eps, rejected, tiny))
     order = [
         "counterfactual",
         "feature_scaffolding",
@@ -148,7 +150,16 @@ def full_anova(cells: pd.DataFrame, dv: str = "optimal") -> dict[str, Any]:
         "counterfactual:feature_scaffolding:difficulty",
     ]
     terms.sort(key=lambda t: order.index(t["term"]))
+    note = None
+    if np.ptp(y) == 0:
+        note = (
+            f"every participant x difficulty proportion is {y.flat[0]:.2f}: there is no "
+            "variance, so no F can be computed"
+        )
+    elif any(t["F"] is None for t in terms):
+        note = "an error stratum has no variance (every participant alike), so its F is undefined"
     return {
+        "note": note,
         "test": "2 x 2 x 3 split-plot ANOVA, type III SS, sum-to-zero coding "
         "(statsmodels OLS per stratum)",
         "terms": terms,
@@ -175,7 +186,10 @@ def _row(
     df2: int,
     eps: float | None,
     rejected: bool,
+    tiny: float = 0.0,
 ) -> dict[str, Any]:
+    if ss_err <= tiny:
+        ss, ss_err = (0.0 if ss <= tiny else ss), 0.0
     f = (ss / df1) / (ss_err / df2) if ss_err > 0 else math.nan
     p = float(sps.f.sf(f, df1, df2)) if math.isfinite(f) else None
     row: dict[str, Any] = {

@@ -4,7 +4,10 @@ Mann-Whitney / Kruskal-Wallis tests.
 A rank test on per-participant medians throws away the ordering information of each answer
 and cannot test cf x fs; here every rating is one observation of statsmodels'
 `OrderedModel` (logit link), with cluster-robust standard errors by participant because
-each person answers once per domain (Likert) or per test (confidence). Codes as in the
+each person answers once per domain (Likert) or per test (confidence). The sandwich has
+statsmodels' default small-sample correction (CR1): G/(G - 1) x (N - 1)/(N - K) for G
+participants, N ratings and K parameters (thresholds included), about 1.05 at G = 24; the
+tests recompute it from R's `clm` fit. Codes as in the
 GLMM: counterfactual and feature scaffolding centred (-1/2, +1/2), so an odds ratio above 1
 means *with* the scaffolding people answer in higher categories; confidence also has
 difficulty (sum-coded) as a covariate.
@@ -24,7 +27,8 @@ from cfteach.analysis.io import DIFFICULTIES, LIKERT_ITEMS
 
 METHOD = (
     "cumulative-logit ordinal regression (statsmodels OrderedModel), "
-    "cluster-robust SE by participant"
+    "cluster-robust SE by participant with the CR1 small-sample correction "
+    "G/(G-1) x (N-1)/(N-K)"
 )
 
 

@@ -145,6 +145,12 @@ def power_curve(
     return pd.DataFrame(rows)
 
 
+def _pct_ci(r: pd.Series) -> str:
+    """'100% [96, 100]': the rate with its Wilson interval (a bare 100% hides that it is
+    an estimate from a finite number of simulations)."""
+    return f"{100 * r['power']:.0f}% [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
+
+
 MIN_PARTICIPANTS = 8  # two per condition: below that the between tests cannot run
 
 
@@ -163,14 +169,21 @@ def write_power_report(table: pd.DataFrame, out_dir: Any, alpha: float = 0.05) -
     table.to_csv(out / "power.csv", index=False, lineterminator="\n")
     wide = table.pivot(index="n_participants", columns="hypothesis", values="power")
     wide = wide[[h for h in HYPOTHESES if h in wide.columns]]
+    cell = table.set_index(["n_participants", "hypothesis"])
+    sims = int(table["n"].max()) if "n" in table and len(table) else 0
     lines = [
-        f"Power (share of simulated studies with p < {alpha:g}) by number of participants",
+        f"Power (share of simulated studies with p < {alpha:g}) by number of participants, "
+        f"with its Wilson 95% interval over {sims} simulated studies per N (as in power.csv)",
         "",
         "| N | " + " | ".join(HYPOTHESES[h][1] for h in wide.columns) + " |",
         "|---|" + "---|" * len(wide.columns),
     ]
-    for n, row in wide.iterrows():
-        lines.append(f"| {n} | " + " | ".join(f"{100 * v:.0f}%" for v in row) + " |")
+    for n, _ in wide.iterrows():
+        lines.append(
+            f"| {n} | "
+            + " | ".join(_pct_ci(cell.loc[(n, h)]) for h in wide.columns)
+            + " |"
+        )
     (out / "power.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
     plt.rcParams["svg.hashsalt"] = "cfteach"
     fig, ax = plt.subplots(figsize=(7, 4.2))

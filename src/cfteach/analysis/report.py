@@ -251,7 +251,7 @@ def _likert_section(doc: Doc, factor: str, lk: dict[str, Any]) -> None:
         names = ("without", "with")
         for item in LIKERT_ITEMS:
             name = item.replace("_", " ").capitalize()
-            r = lk[item][factor]
+            r = lk[item] if "skipped" in lk[item] else lk[item][factor]
             if "skipped" in r:
                 doc.p(f"{name}: Mann-Whitney U skipped ({r['skipped']}).")
                 continue
@@ -262,7 +262,7 @@ def _likert_section(doc: Doc, factor: str, lk: dict[str, Any]) -> None:
             )
     else:
         for item in LIKERT_ITEMS:
-            kw = lk[item]["condition"]
+            kw = lk[item] if "skipped" in lk[item] else lk[item]["condition"]
             name = item.replace("_", " ").capitalize()
             if "skipped" in kw:
                 doc.p(f"{name}: Kruskal-Wallis skipped ({kw['skipped']}).")
@@ -491,12 +491,17 @@ def _full_anova_section(doc: Doc, results: dict[str, Any]) -> None:
         ["Term", "Test" + (" (GG where within)" if rejected else ""), "p (GG)", "ηp²", "95% CI"],
         rows,
     )
+    if detail.get("note"):
+        doc.p(f"Note: {detail['note']}.")
 
 
 def _sensitivity_section(doc: Doc, sens: dict[str, Any] | None) -> None:
     if not sens:
         return
     doc.h(2, "Sensitivity to the exclusions")
+    if "skipped" in sens:
+        doc.p(f"Not computed: {sens['skipped']}.")
+        return
     doc.p(
         "The H1 ANOVA and the full model again, without the outlier and manual exclusions and "
         "with the robust outlier rule; " + sens["note"] + "."
@@ -527,8 +532,13 @@ def _ordinal_section(doc: Doc, ordinal: dict[str, Any] | None) -> None:
     doc.p(
         "Beside the paper's rank tests: every rating as one observation of a cumulative-logit "
         "(proportional odds) model with cluster-robust SEs by participant. OR > 1: answers in "
-        "higher categories with the scaffolding (or at that difficulty vs the mean)."
+        "higher categories with the scaffolding (or at that difficulty vs the mean). The "
+        "cluster-robust SEs use the CR1 small-sample correction, G/(G - 1) x (N - 1)/(N - K) "
+        "for G participants, N ratings and K parameters (statsmodels' default)."
     )
+    if "skipped" in ordinal and isinstance(ordinal["skipped"], str):
+        doc.p(f"Not computed: {ordinal['skipped']}.")
+        return
     rows = []
     for name, res in ordinal.items():
         label = name.replace("_", " ").capitalize()
@@ -564,6 +574,19 @@ def _glmm_term(term: str) -> str:
     return " × ".join(parts)
 
 
+def _covariate_text(g: dict[str, Any]) -> str:
+    """The covariates the model really has (a constant one is dropped, and said so)."""
+    cov = g.get("covariates")
+    if cov is None:  # results.json written before the field existed
+        return " with domain and domain position as covariates"
+    names = []
+    if any(c.startswith("domain[") for c in cov):
+        names.append("domain")
+    if "domain_position" in cov:
+        names.append("domain position")
+    return f" with {' and '.join(names)} as covariates" if names else " without covariates"
+
+
 def _glmm_section(doc: Doc, g: dict[str, Any] | None) -> None:
     if not g:
         return
@@ -575,11 +598,13 @@ def _glmm_section(doc: Doc, g: dict[str, Any] | None) -> None:
     doc.p(
         f"Each of the {g['n_observations']} answers ({g['n_participants']} participants, "
         f"{g['n_items']} test items) as one binary trial: {g['method']}; fixed effects "
-        "counterfactual × feature scaffolding × difficulty with domain and domain position "
-        f"as covariates. Random-intercept SDs (logit): participant {fmt_num(sd['participant'])}"
+        f"counterfactual × feature scaffolding × difficulty{_covariate_text(g)}. "
+        f"Random-intercept SDs (logit): participant {fmt_num(sd['participant'])}"
         f", item {fmt_num(sd['item'])}. Coding: {g['coding']}. Wald 95% CIs."
         + ("" if g.get("converged", True) else " **The fit did not converge.**")
     )
+    for note in g.get("notes") or []:
+        doc.p(f"**Note**: {note}")
     doc.table(
         ["Term", "OR", "95% CI", "p"],
         [
@@ -598,6 +623,9 @@ def _descriptives_section(doc: Doc, desc: dict[str, Any] | None) -> None:
     if not desc:
         return
     doc.h(2, "Descriptives per condition")
+    if "skipped" in desc:
+        doc.p(f"Not computed: {desc['skipped']}.")
+        return
     doc.p(
         "Means (SD) over participants; proportion optimal is each participant's share of "
         "optimal answers; confidence 1-5; Likert medians of the per-participant medians."
@@ -654,9 +682,16 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
         doc.p(meta["note"])
     part = results["participants"]
     doc.h(2, "Participants and exclusions")
+    n_cl = part.get("n_closed_loop", 0)
     doc.p(
-        f"{part['n_sessions']} sessions in the export; {part['n_retained']} participants "
-        "retained ("
+        _sessions(part["n_sessions"])
+        + " in the export"
+        + (
+            f" ({n_cl} closed_loop, compared in their own section below)"
+            if n_cl
+            else ""
+        )
+        + f"; {part['n_retained']} participants of the paper's conditions retained ("
         + ", ".join(
             f"{_level('condition', c)}: {n}" for c, n in part["retained_by_condition"].items()
         )
@@ -738,7 +773,11 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
     _ordinal_section(doc, results.get("ordinal"))
 
     doc.h(2, "Exploratory measures")
-    for res in results["exploratory"].values():
+    expl = results["exploratory"]
+    if isinstance(expl.get("skipped"), str):
+        doc.p(f"Not computed: {expl['skipped']}.")
+        expl = {}
+    for res in expl.values():
         if "skipped" in res:
             doc.p(f"{res['label']}: skipped ({res['skipped']}).")
             continue
@@ -768,6 +807,31 @@ def build_document(results: dict[str, Any], figures: dict[str, list[str]]) -> Do
     if "exploratory" in figures:
         doc.img(f"figures/{figures['exploratory'][0]}", "Exploratory measures by condition")
     return doc
+
+
+def _sessions(n: int) -> str:
+    return f"{n} session" + ("" if n == 1 else "s")
+
+
+def write_closed_loop_only_report(results: dict[str, Any], out_dir: Path) -> None:
+    """The report of an export that holds only closed_loop sessions."""
+    doc = Doc()
+    meta = results["meta"]
+    doc.h(1, "Study analysis report")
+    doc.p(f"Export: `{meta['export_dir']}`. Generated by cfteach {meta['cfteach_version']}.")
+    if meta.get("note"):
+        doc.p(meta["note"])
+    doc.h(2, "Participants")
+    n = results["participants"]["n_sessions"]
+    doc.p(
+        f"{_sessions(n)} in the export, all closed_loop. The paper's statistics were not "
+        f"computed: {results['paper_analysis']['skipped']}."
+    )
+    cl = results.get("closed_loop") or {}
+    if "skipped" in cl:
+        doc.p(f"Closed-loop comparison not computed: {cl['skipped']}.")
+    (out_dir / "report.md").write_text(doc.markdown(), encoding="utf-8")
+    (out_dir / "report.html").write_text(doc.html("Study analysis report"), encoding="utf-8")
 
 
 def write_report(results: dict[str, Any], figures: dict[str, list[str]], out_dir: Path) -> None:

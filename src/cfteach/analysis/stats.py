@@ -92,6 +92,17 @@ def skipped(test: str, why: str) -> dict[str, Any]:
     return {"test": test, "skipped": why}
 
 
+def no_variance(cells: pd.DataFrame, dv: str = "optimal") -> str | None:
+    """Why a test of `dv` is undefined when every cell has the same value (else None)."""
+    v = cells[dv].dropna()
+    if len(v) and float(v.max() - v.min()) == 0.0:
+        return (
+            f"every participant x difficulty value of {dv} is {float(v.iloc[0]):.2f}: "
+            "there is no variance to test"
+        )
+    return None
+
+
 def complete_cells(cells: pd.DataFrame) -> pd.DataFrame:
     """The participant x difficulty cells of participants who have all three difficulties.
 
@@ -175,6 +186,8 @@ def rm_anova_difficulty(frames: Frames) -> dict[str, Any]:
         return skipped(
             test, f"needs at least 3 participants with all three difficulties (have {n})"
         )
+    if why := no_variance(cells):
+        return {**skipped(test, why), "means": difficulty_means(cells)}
     res = pg.rm_anova(
         data=cells,
         dv="optimal",
@@ -216,6 +229,8 @@ def posthoc_difficulty(
     n = int(cells["participant_id"].nunique())
     if n < 2:
         why = f"needs at least 2 participants with all three difficulties (have {n})"
+        return {"paired": skipped("paired t-tests", why)}
+    if why := no_variance(cells):
         return {"paired": skipped("paired t-tests", why)}
     cells["difficulty"] = cells["difficulty"].astype(str)
     paired = pg.pairwise_tests(
@@ -409,6 +424,8 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
     skipped = _skip(cells, factor, levels)
     if skipped:
         return skipped
+    if why := no_variance(cells):
+        return {"factor": factor, "skipped": why}
     cells = cells[cells[factor].astype(str).isin([str(lv) for lv in levels])]
     res = pg.mixed_anova(
         data=cells,

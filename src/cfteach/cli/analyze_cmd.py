@@ -275,6 +275,10 @@ def analyze(
         typer.echo(f"Error: {unexpected_error(exc, f'analysis of {export_dir}')}", err=True)
         raise typer.Exit(code=1) from exc
     p = results["participants"]
+    if "paper_analysis" in results:  # closed_loop sessions only
+        typer.echo(f"{p['n_sessions']} session(s): {results['paper_analysis']['skipped']}.")
+        typer.echo(f"report: {out / 'report.html'}  ({out / 'report.md'}, {out / 'results.json'})")
+        return
     rm = results["h1"]["rm_anova"]
     from cfteach.analysis.report import fmt_F
 
@@ -283,10 +287,16 @@ def analyze(
         if "skipped" in rm
         else fmt_F(rm["df1"], rm["df2"], rm["F"], rm["p"])
     )
+    closed = p.get("n_closed_loop", 0)
+    also = f"; {closed} closed_loop in their own section" if closed else ""
     typer.echo(
         f"{p['n_retained']} of {p['n_sessions']} sessions analysed ({p['n_excluded']} "
-        f"excluded). H1: {h1}."
+        f"excluded{also}). H1: {h1}."
     )
+    from cfteach.analysis.pipeline import skipped_steps
+
+    if failed := skipped_steps(results):
+        typer.echo(f"Warning: not computed (error; see report.md): {', '.join(failed)}", err=True)
     typer.echo(f"report: {out / 'report.html'}  ({out / 'report.md'}, {out / 'results.json'})")
 
 
