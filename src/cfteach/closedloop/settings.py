@@ -9,10 +9,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from cfteach.closedloop.noisy_belief import RATIONALITY, UPTAKE
+from cfteach.closedloop.noisy_belief import DISENGAGED, RATIONALITY, UPTAKE
 
 MODELS = ("noisy", "fixed")
-_GRIDS = ("zpd_band", "rationality", "uptake")
+_GRIDS = ("zpd_band", "rationality", "uptake", "disengaged")
 
 
 @dataclass(frozen=True)
@@ -32,10 +32,12 @@ class TeacherSettings:
     model: str = "noisy"          # "noisy": rationality, uptake inferred; "fixed": v1 model
     rationality: tuple[float, ...] = RATIONALITY  # model "noisy": grid of beta
     uptake: tuple[float, ...] = UPTAKE            # model "noisy": grid of demo uptake
+    disengaged: tuple[float, ...] = DISENGAGED    # model "noisy": grid of P(random answer)
     lapse: float = 0.01           # model "noisy": chance of a random move at any step
     test_every: int = 3           # after the first test, a test at least every this many items
     max_repeat: int = 2           # the same demonstration at most this many times in a row
     n_probes: int = 48            # the teacher's own probe tests (never the post-tests)
+    min_passes: int = 2           # stop only after this many passed tests in a row
 
     def __post_init__(self) -> None:
         for name in _GRIDS:  # lists (from JSON) become tuples
@@ -61,11 +63,15 @@ class TeacherSettings:
              "one or more positive numbers"),
             ("uptake", len(self.uptake) >= 1 and all(0 < u < 1 for u in self.uptake),
              "one or more numbers in (0, 1)"),
+            ("disengaged", len(self.disengaged) >= 1
+             and all(0 < x < 1 for x in self.disengaged), "one or more numbers in (0, 1)"),
             ("lapse", 0 <= self.lapse < 1, "in [0, 1)"),
             ("test_every", isinstance(self.test_every, int) and self.test_every >= 1,
              "an integer >= 1"),
             ("max_repeat", isinstance(self.max_repeat, int) and self.max_repeat >= 1,
              "an integer >= 1"),
+            ("min_passes", isinstance(self.min_passes, int) and self.min_passes >= 0,
+             "an integer >= 0"),
             ("n_probes", isinstance(self.n_probes, int) and self.n_probes >= 1,
              "an integer >= 1"),
         ]

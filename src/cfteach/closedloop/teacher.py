@@ -23,8 +23,9 @@ The loop (docs/closed-loop.md):
    fail it.
 4. After the first test, a test at least every ``test_every`` items; when no lesson would
    cut the belief, a test, or stop.
-5. Stop, after a passed test, when the belief's mass inside the regions of the teacher's own
-   probe tests reaches ``stop_threshold`` (never the post-tests), or at ``max_items``.
+5. Stop, after ``min_passes`` passed tests in a row, when the belief's mass inside the
+   regions of the teacher's own probe tests reaches ``stop_threshold`` (never the
+   post-tests), or at ``max_items``.
 
 The state is a pure function of (pool, settings, seed, responses): `replay` rebuilds it, so a
 server can restore a session from its event log and a simulation can be re-run exactly.
@@ -114,7 +115,7 @@ class ClosedLoopTeacher:
         if st.model == "noisy":
             self.belief = NoisyBelief(prior, ds.F, n_particles=st.n_particles, seed=self.seed,
                                       rationality=st.rationality, uptake=st.uptake,
-                                      lapse=st.lapse)
+                                      disengaged=st.disengaged, lapse=st.lapse)
         else:
             self.belief = ParticleBelief(prior, ds.F, n_particles=st.n_particles,
                                          seed=self.seed, p_learn=st.p_learn,
@@ -309,8 +310,7 @@ class ClosedLoopTeacher:
                 return check
             self.stop_reason = "no diagnostic test left"
             return None
-        last_test = next((it for it in reversed(self.items) if it.kind == "test"), None)
-        if last_test is None or self.outcomes[last_test.index].correct:
+        if self._passes_in_a_row() >= st.min_passes:
             know = self.knowledge()
             if know is not None and know >= st.stop_threshold:
                 self.stop_reason = f"knowledge on the probes {know:.3f}"
@@ -324,6 +324,16 @@ class ClosedLoopTeacher:
                 return check
         self.stop_reason = "no lesson would cut the belief"
         return None
+
+    def _passes_in_a_row(self) -> int:
+        """Tests passed since the last failed one."""
+        n = 0
+        for it in reversed(self.items):
+            if it.kind == "test":
+                if not self.outcomes[it.index].correct:
+                    break
+                n += 1
+        return n
 
     def _open_failure(self) -> Item | None:
         """The last test, if it was failed and the belief still predicts a wrong answer."""
