@@ -41,7 +41,7 @@ from cfteach.closedloop.belief import TOL, ParticleBelief, _check_rows
 
 #: Rationality grid: Q-value differences of a domain's actions are about 0.1-0.2 (weights are
 #: unit vectors), so beta = 2 is close to random and beta = 300 close to greedy.
-RATIONALITY = (2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 300.0)
+RATIONALITY = (5.0, 10.0, 20.0, 50.0, 100.0, 300.0)
 #: Uptake grid: the chance a shown demonstration is taken in.
 UPTAKE = (0.2, 0.4, 0.6, 0.8, 0.95)
 #: Disengagement grid: the chance a whole answer is random moves.
@@ -53,22 +53,39 @@ __all__ = ["DISENGAGED", "RATIONALITY", "UPTAKE", "NoisyBelief", "StepData"]
 class StepData:
     """Per-step choice data of some states: for each state (a group) the rows ``Psi(s, a)``
     of its A actions (``rows [G, A, F]``), how often each was taken (``counts [G, A]``) or
-    which are optimal (``optimal [G, A]``)."""
+    which are optimal (``optimal [G, A]``). ``alt [G, F]`` / ``alt_action [G]`` (-1: none)
+    give a plan the learner is known to have for one action of a group (the rest of their
+    own finished answer): ``Q_w(s, a)`` is the better of ``w . Psi(s, a)`` and ``w . alt``,
+    as both are plans that start with ``a``."""
 
     def __init__(self, rows: np.ndarray, counts: np.ndarray | None = None,
-                 optimal: np.ndarray | None = None) -> None:
+                 optimal: np.ndarray | None = None, alt: np.ndarray | None = None,
+                 alt_action: np.ndarray | None = None) -> None:
         self.rows = np.asarray(rows, dtype=np.float64)
         if self.rows.ndim != 3:
             raise ValueError(f"StepData rows: expected shape [G, A, F], got {self.rows.shape}")
         self.counts = None if counts is None else np.asarray(counts, dtype=np.float64)
         self.optimal = None if optimal is None else np.asarray(optimal, dtype=bool)
+        self.alt = None if alt is None else np.asarray(alt, dtype=np.float64)
+        self.alt_action = None if alt_action is None else np.asarray(alt_action, np.int64)
 
     def x(self, points: np.ndarray) -> np.ndarray:
-        """``w . Psi(s, a)`` for every point, state and action: ``[P, G, A]``."""
-        return np.einsum("pf,gaf->pga", points, self.rows, optimize=True)
+        """``Q_w(s, a)`` for every point, state and action: ``[P, G, A]``."""
+        x = np.einsum("pf,gaf->pga", points, self.rows, optimize=True)
+        if self.alt is not None and len(self.alt):
+            g = np.flatnonzero(self.alt_action >= 0)
+            a = self.alt_action[g]
+            x[:, g, a] = np.maximum(x[:, g, a], points @ self.alt[g].T)
+        return x
+
+    @classmethod
+    def of(cls, entry: dict[str, Any]) -> StepData:
+        return cls(entry["rows"], entry.get("counts"), entry.get("optimal"), entry.get("alt"),
+                   entry.get("alt_action"))
 
     def to_json(self) -> dict[str, Any]:
-        return {"rows": self.rows, "counts": self.counts, "optimal": self.optimal}
+        return {"rows": self.rows, "counts": self.counts, "optimal": self.optimal,
+                "alt": self.alt, "alt_action": self.alt_action}
 
 
 def _as_grid(values: Any, name: str, low: float, high: float) -> np.ndarray:
@@ -184,7 +201,7 @@ class NoisyBelief(ParticleBelief):
         if kind == "demonstration":
             self.observe_demonstration(entry["constraints"])
         elif kind == "steps":
-            self.observe_steps(StepData(entry["rows"], entry["counts"]))
+            self.observe_steps(StepData.of(entry))
         elif kind == "outcome":
             self.observe_outcome(StepData(entry["rows"], None, entry["optimal"]),
                                  entry["region"], entry["correct"])
@@ -204,8 +221,7 @@ class NoisyBelief(ParticleBelief):
                   v: dict[str, np.ndarray]) -> np.ndarray:
         if entry["kind"] == "demonstration":
             return np.where(_sat(points, entry["constraints"]), 0.0, np.log1p(-v["uptake"]))
-        data = StepData(entry["rows"])
-        x = data.x(points)
+        x = StepData.of(entry).x(points)
         if entry["kind"] == "steps":
             counts = entry["counts"]
             pol = np.einsum("pga,ga->p", self._log_policy(x, v["beta"]), counts)
@@ -241,13 +257,13 @@ class NoisyBelief(ParticleBelief):
             keep = sizes > 0
             counts = np.concatenate([e["counts"] for e in steps]) if keep.any() \
                 else np.zeros((0, self.dim))
-            rows = np.concatenate([e["rows"] for e in steps if len(e["rows"])]) \
-                if keep.any() else None
+            x = np.concatenate([StepData.of(e).x(points) for e in steps if len(e["rows"])],
+                               axis=1) if keep.any() else None
             out["steps"] = {
-                "counts": counts, "x": None if rows is None else StepData(rows).x(points),
+                "counts": counts, "x": x,
                 "starts": np.concatenate([[0], np.cumsum(sizes[keep])[:-1]]).astype(np.int64),
                 "keep": keep, "n_moves": np.array([e["counts"].sum() for e in steps])}
-        out["outcomes"] = [(e, StepData(e["rows"]).x(points), _sat(points, e["region"]))
+        out["outcomes"] = [(e, StepData.of(e).x(points), _sat(points, e["region"]))
                            for e in self.history if e["kind"] == "outcome"]
         return out
 

@@ -2,7 +2,7 @@
 
 The post-teaching tests (`LessonPool.held_out`) score the learner afterwards; the teacher
 must not peek at them, neither to stop nor to pick lessons. It predicts on probes instead:
-`n` candidate tests (never a held-out one), spread evenly over difficulty (the share of the
+up to `n` candidate tests (never a held-out one), spread evenly over difficulty (the share of the
 prior whose weights answer them optimally, from 2,000 prior draws), so that they cover easy
 and hard tests alike as a post-test selection does.
 """
@@ -34,7 +34,6 @@ def probe_demos(pool: LessonPool, n: int) -> np.ndarray:
         sets = pool.tests
         mass = sets.satisfied(_prior_draws(pool)).mean(axis=1) if sets.n_sets else np.zeros(0)
         cand = np.array([d for d in range(ds.D) if sets.slot[d] >= 0
-                         and d not in pool.held_out
                          and HARD < mass[sets.slot[d]] < EASY], dtype=np.int64)
         if not len(cand):
             pool.cache[key] = cand
@@ -42,7 +41,10 @@ def probe_demos(pool: LessonPool, n: int) -> np.ndarray:
         order = cand[np.lexsort((cand, mass[sets.slot[cand]]))]
         pick = np.unique(np.round(np.linspace(0, len(order) - 1, min(n, len(order))))
                          .astype(np.int64))
-        pool.cache[key] = np.sort(order[pick])
+        # chosen among all tests, then the post-tests dropped: which tests are held out
+        # changes nothing else
+        pool.cache[key] = np.array([d for d in np.sort(order[pick]).tolist()
+                                    if d not in pool.held_out], dtype=np.int64)
     return pool.cache[key]
 
 

@@ -20,24 +20,33 @@ from cfteach.closedloop.noisy_belief import StepData
 Q_TIE = 1e-9
 
 
-def answer_steps(ds: DemoSet, env: int, states: Sequence[int],
-                 actions: Sequence[int]) -> StepData:
-    """The moves of one answer in instance `env`: one group per distinct state visited,
-    counting how often each action was taken there."""
+def answer_steps(ds: DemoSet, env: int, states: Sequence[int], actions: Sequence[int],
+                 finished: bool = False) -> StepData:
+    """The moves of one answer in instance `env`. A finished answer is scored step by
+    step, each move's value also seen through the rest of the learner's own path (a plan
+    they had: `StepData.alt`); an unfinished one (a wander) by one group per distinct
+    state visited, counting how often each action was taken there."""
     if len(states) != len(actions):
         raise ValueError(f"{len(states)} states for {len(actions)} actions")
     A = ds.batch.A
+    if finished and len(states):
+        st, ac = np.asarray(states, np.int64), np.asarray(actions, np.int64)
+        phi = ds.batch.features[env, st, ac].astype(float)          # [T, F]
+        suffix = np.cumsum(phi[::-1], axis=0)[::-1]
+        counts = np.zeros((len(st), A))
+        counts[np.arange(len(st)), ac] = 1
+        return StepData(ds.dev_mu[env, st].astype(float), counts, alt=suffix, alt_action=ac)
     order: dict[int, int] = {}
-    counts: list[np.ndarray] = []
+    counts_l: list[np.ndarray] = []
     for s, a in zip(states, actions, strict=True):
         g = order.setdefault(int(s), len(order))
-        if g == len(counts):
-            counts.append(np.zeros(A))
-        counts[g][int(a)] += 1
+        if g == len(counts_l):
+            counts_l.append(np.zeros(A))
+        counts_l[g][int(a)] += 1
     if not order:
         return StepData(np.zeros((0, A, ds.F)), np.zeros((0, A)))
     visited = np.fromiter(order, dtype=np.int64)
-    return StepData(ds.dev_mu[env, visited].astype(float), np.vstack(counts))
+    return StepData(ds.dev_mu[env, visited].astype(float), np.vstack(counts_l))
 
 
 def path_steps(ds: DemoSet, demos: Sequence[int]) -> tuple[StepData, np.ndarray]:

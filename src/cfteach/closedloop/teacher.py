@@ -185,7 +185,7 @@ class ClosedLoopTeacher:
         if isinstance(self.belief, NoisyBelief):
             if outcome.actions is not None:
                 self.belief.observe_steps(answer_steps(ds, int(ds.env[d]), outcome.states,
-                                                       outcome.actions))
+                                                       outcome.actions, outcome.finished))
             else:
                 data, _ = path_steps(ds, [d])
                 self.belief.observe_outcome(data, self.pool.test_rows.of(d).astype(float),

@@ -35,7 +35,8 @@ def bootstrap_ratio(num: np.ndarray, den: np.ndarray, *, seed: int = 0,
         r = np.where(bd > 0, bn / np.where(bd > 0, bd, 1), np.where(bn > 0, np.inf, 1.0))
     m_num, m_den = float(num.mean()), float(den.mean())
     point = m_num / m_den if m_den > 0 else (np.inf if m_num > 0 else 1.0)
-    lo, hi = np.percentile(r, [2.5, 97.5])
+    lo = np.percentile(r, 2.5, method="lower")  # no interpolation: r may hold inf
+    hi = np.percentile(r, 97.5, method="higher")
     return float(point), float(lo), float(hi)
 
 

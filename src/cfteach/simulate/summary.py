@@ -97,7 +97,8 @@ def answer_regret(df: pd.DataFrame) -> np.ndarray:
 
 def per_learner(df: pd.DataFrame) -> pd.DataFrame:
     """Each learner's mean regret (`answer_regret`) and proportion of optimal answers."""
-    return df.assign(regret=answer_regret(df), p_optimal=df["correct"].astype(float)).groupby(
+    correct = df["correct"].astype(float) if "correct" in df.columns else np.nan
+    return df.assign(regret=answer_regret(df), p_optimal=correct).groupby(
         ["learner_model", "domain", "condition", "seed", "learner"], observed=True
     )[["regret", "p_optimal"]].mean().reset_index()
 
