@@ -208,11 +208,23 @@ class ClosedLoopTeacher:
 
     # -- summaries -------------------------------------------------------------------------
     def predicted_held_out(self) -> float | None:
-        """Belief's mean P(optimal) over the held-out tests (None without held-out tests).
-        For analysis only: no decision reads it (the teacher stops by its probes)."""
+        """Belief mass inside the held-out tests' regions, averaged over them (None without
+        held-out tests; the study exports it as `predicted_held_out`). For analysis only: no
+        decision reads it (the teacher stops by its probes)."""
         if not len(self._held):
             return None
-        return float(self._predict(self._held)[0].mean())
+        sets, w = self.pool.tests, self.belief.weights
+        slots = sets.slot[self._held]
+        used = np.unique(slots[slots >= 0])
+        p = np.ones(len(slots))
+        if len(used):  # per distinct row set, in the order `study.live.held_out_p` uses
+            inc = sets.incidence[used]
+            cols = np.unique(inc.indices)
+            broken = (sets.rows[cols] @ self.belief.particles.T < -1e-9).astype(np.float32)
+            sat = np.asarray(inc[:, cols] @ broken) == 0
+            p_set = dict(zip(used.tolist(), (sat.astype(float) @ w).tolist(), strict=True))
+            p = np.array([p_set[int(k)] if k >= 0 else 1.0 for k in slots.tolist()])
+        return float(p.mean())
 
     def prediction(self) -> dict[str, float | None]:
         """The belief's mean P(optimal) on the teacher's probes (`predicted`, with the
