@@ -23,10 +23,13 @@ def main() -> None:
     ap.add_argument("--domains", default="delivery,tiles,skateboard")
     ap.add_argument("--sessions", type=int, default=5)
     ap.add_argument("--learner", default="inattentive")
+    ap.add_argument("--teacher", default="",
+                    help="TeacherSettings as field=value,... (e.g. model=fixed)")
     args = ap.parse_args()
 
     from cfteach import teaching
-    from cfteach.closedloop import ClosedLoopTeacher, build_pool
+    from cfteach.cli.simulate_cmd import _teacher_settings
+    from cfteach.closedloop import ClosedLoopTeacher, TeacherSettings, build_pool
     from cfteach.domains import load
     from cfteach.simulate.learners import Learners
 
@@ -41,7 +44,9 @@ def main() -> None:
         t_pool = time.perf_counter() - t0
         times, items = [], []
         for s in range(args.sessions):
-            teacher = ClosedLoopTeacher(pool, seed=s)
+            settings = TeacherSettings(**_teacher_settings(
+                [p for p in args.teacher.split(",") if p]))
+            teacher = ClosedLoopTeacher(pool, settings, seed=s)
             learner = Learners(dom, args.learner, 1, rng=1000 + s)
             while True:
                 t = time.perf_counter()
@@ -51,10 +56,9 @@ def main() -> None:
                     times.append(dt)
                     break
                 shown = item.to_json(pool)
-                if item.kind == "test":
-                    ans = learner.answer([shown])
-                    resp = {"feature_counts": ans["feature_counts"][0, 0].tolist(),
-                            "finished": bool(ans["finished"][0, 0])}
+                if item.kind == "test":  # the moves, as the study server sends them
+                    ans = learner.answer([shown], moves=True)
+                    resp = {"actions": ans["actions"][0][0]}
                 else:
                     learner.observe(shown)
                     resp = {}

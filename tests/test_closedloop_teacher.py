@@ -78,7 +78,10 @@ def test_loop_structure(material):
                 # never a held-out test, never a start state already demonstrated
                 assert it.demo not in pool.held_out
                 assert it.demo not in shown
-                assert items[it.about].kind == "demonstration"
+                # a diagnostic test is about a lesson; a check test (at least every
+                # test_every items) about the last demonstration, if any
+                assert it.about is None or items[it.about].kind == "demonstration"
+                assert it.purpose in ("diagnostic", "check")
                 wrong = not teacher.outcomes[k].correct
                 follow = items[k + 1] if k + 1 < len(items) else None
                 if wrong and follow is not None:

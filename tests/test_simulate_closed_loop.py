@@ -1,4 +1,5 @@
-"""`cfteach simulate` with closed_loop: regret, items shown and the equal-budget control."""
+"""`cfteach simulate` with closed_loop: regret, items shown, the equal-budget and equal-items
+controls, ratios and calibration."""
 
 from __future__ import annotations
 
@@ -24,12 +25,13 @@ def sweep():
 
 def test_results_carry_regret_and_items_for_every_condition(sweep):
     summ = sweep.summary()
-    conds = {"proposed", "closed_loop", "proposed_equal_budget"}
+    conds = {"proposed", "closed_loop", "proposed_equal_budget", "proposed_equal_items"}
     assert set(summ["regret"]["inattentive"]["skateboard"]) == conds
     assert set(summ["items_shown"]["inattentive"]["skateboard"]) == conds
     for c in conds:
         r = summ["regret"]["inattentive"]["skateboard"][c]
         assert r["n_learners"] == 4 and r["ci_low"] <= r["mean"] <= r["ci_high"]
+        assert 0 <= r["p_optimal"] <= 1 and r["median"] >= 0
     items = summ["items_shown"]["inattentive"]["skateboard"]
     cl = items["closed_loop"]
     assert cl["max"] <= 12
@@ -41,10 +43,42 @@ def test_results_carry_regret_and_items_for_every_condition(sweep):
     assert items["proposed"]["tests"] == 0 and items["proposed"]["feedback"] == 0
 
 
+def test_equal_items_control_shows_each_learner_as_many_items_as_its_session(sweep):
+    b = sweep.beliefs
+    closed = b[b["condition"] == "closed_loop"].set_index("learner")["items"]
+    same = b[b["condition"] == "proposed_equal_items"].set_index("learner")
+    assert sorted(same.index) == sorted(closed.index)
+    for learner, n in closed.items():
+        assert same.loc[learner, "items"] == n == same.loc[learner, "demos"]
+
+
+def test_calibration_and_ratios_are_well_formed(sweep):
+    summ = sweep.summary()
+    cal = summ["calibration"]["inattentive"]["skateboard"]
+    assert set(cal) >= {"predicted", "observed", "n"} and cal["n"] == 4
+    assert 0 <= cal["predicted"] <= 1 and 0 <= cal["observed"] <= 1
+    # observed: the learners' own post-test P(optimal), recomputed from the answers
+    a = sweep.answers
+    per = a[a["condition"] == "closed_loop"].groupby("learner")["correct"].mean()
+    assert cal["observed"] == pytest.approx(float(per.mean()))
+    pred = sweep.beliefs.loc[sweep.beliefs["condition"] == "closed_loop", "predicted"]
+    assert cal["predicted"] == pytest.approx(float(pred.mean()))
+    cells = summ["ratios"]["cells"]["inattentive"]["skateboard"]
+    assert set(cells) == {"closed_loop/proposed", "closed_loop/proposed_equal_budget",
+                          "closed_loop/proposed_equal_items"}
+    reg = summ["regret"]["inattentive"]["skateboard"]
+    for key, r in cells.items():
+        den = reg[key.split("/")[1]]["mean"]
+        if den > 0:
+            assert r["ratio"] == pytest.approx(reg["closed_loop"]["mean"] / den)
+        assert r["ci_low"] <= r["ratio"] <= r["ci_high"]
+
+
 def test_same_held_out_tests_in_every_condition(sweep):
     a = sweep.answers
     tests = {c: sorted(g["test"].unique()) for c, g in a.groupby("condition")}
-    assert tests["closed_loop"] == tests["proposed"] == tests["proposed_equal_budget"]
+    assert tests["closed_loop"] == tests["proposed"] == tests["proposed_equal_budget"] \
+        == tests["proposed_equal_items"]
 
 
 def test_regret_table_against_a_hand_computation():

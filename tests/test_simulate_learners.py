@@ -214,3 +214,29 @@ def test_learner_specs_from_the_command_line() -> None:
         learner_model("noisy:temperature=-1")
     with pytest.raises(ValueError, match="unbounded must be one of loops, resample, drop"):
         learner_model("noisy:unbounded=ignore")
+
+
+@pytest.mark.parametrize("model", ["counterfactual", "noisy"])
+def test_answer_moves_replay_to_the_same_feature_counts(model):
+    """`answer(moves=True)` returns the moves behind each answer (what the closed-loop
+    teacher sees), drawn with the same random numbers as without them."""
+    from cfteach.domains import load as load_domain
+    from cfteach.simulate.learners import Learners
+
+    dom = load_domain("skateboard")
+    tests = [{"env_index": 0, "start_state": dom.instances()[0].state_to_json(s)}
+             for s in dom.instances()[0].states()[:4]]
+    a = Learners(dom, model, 3, rng=7).answer(tests, moves=True)
+    b = Learners(dom, model, 3, rng=7).answer(tests)
+    assert np.array_equal(a["feature_counts"], b["feature_counts"])
+    batch = Learners(dom, model, 1, rng=0).batch
+    for i in range(3):
+        for j, t in enumerate(tests):
+            s = batch.index_of(0, dom.instances()[0].state_from_json(t["start_state"]))
+            mu = np.zeros(batch.F)
+            for name in a["actions"][i][j]:
+                k = batch.actions.index(name)
+                mu += batch.features[0, s, k]
+                s = int(batch.next_state[0, s, k])
+            assert np.allclose(mu, a["feature_counts"][i, j])
+            assert (s == batch.sink) == bool(a["finished"][i, j])

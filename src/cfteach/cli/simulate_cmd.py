@@ -131,6 +131,10 @@ def _teacher_settings(pairs: list[str] | None) -> dict:
             if key == "zpd_band":
                 lo, hi = value.split("/")
                 out[key] = (float(lo), float(hi))
+            elif key in ("rationality", "uptake", "disengaged"):  # grids: a/b/c
+                out[key] = tuple(float(x) for x in value.split("/"))
+            elif key == "model":
+                out[key] = value
             elif types[key] in ("int", int):
                 out[key] = int(value)
             else:

@@ -11,8 +11,10 @@ tie-breaks) and below `simulate` and `study`, which both drive the same object.
 """
 
 from cfteach.closedloop.belief import ParticleBelief
+from cfteach.closedloop.noisy_belief import NoisyBelief
 from cfteach.closedloop.pool import LessonPool, build_pool, held_out_demos
-from cfteach.closedloop.teacher import ClosedLoopTeacher, Item, TeacherSettings
+from cfteach.closedloop.settings import TeacherSettings
+from cfteach.closedloop.teacher import ClosedLoopTeacher, Item
 
-__all__ = ["ClosedLoopTeacher", "Item", "LessonPool", "ParticleBelief", "TeacherSettings",
-           "build_pool", "held_out_demos"]
+__all__ = ["ClosedLoopTeacher", "Item", "LessonPool", "NoisyBelief", "ParticleBelief",
+           "TeacherSettings", "build_pool", "held_out_demos"]

@@ -100,6 +100,7 @@ class LessonPool:
     lessons: RowIndex
     tests: RowIndex
     settings: dict[str, Any] = field(default_factory=dict)
+    cache: dict[Any, Any] = field(default_factory=dict, repr=False)  # probes, paths
 
     @property
     def F(self) -> int:  # noqa: N802 - the feature count, as elsewhere

@@ -1,5 +1,6 @@
 """The closed-loop teacher: lessons, diagnostic tests and feedback, chosen one at a time from
-a particle belief over the learner's reward weights.
+a particle belief over the learner's reward weights (and, by default, their rationality and
+uptake: `cfteach.closedloop.noisy_belief`).
 
     pool = build_pool("delivery", held_out=tests)        # once per domain
     teacher = ClosedLoopTeacher(pool, seed=0)
@@ -12,16 +13,19 @@ The loop (docs/closed-loop.md):
 
 1. A *lesson*: the counterfactual demonstration whose constraints would cut a share of the
    belief closest to ``zpd_proportion`` of the largest share any lesson would cut, inside the
-   band ``zpd_band`` (the zone of proximal development: not what the learner already knows,
-   not the most surprising).
+   band ``zpd_band``; never from a post-test's or a probe's start, never the same one more
+   than ``max_repeat`` times in a row.
 2. A *diagnostic test* on what the lesson taught: the test whose chance of an optimal answer
    differs most between particles that absorbed the lesson and particles that did not.
 3. A right answer moves on; a wrong one gets *feedback* (the learner's answer beside the
    optimal one, which the belief treats as a demonstration) and, while the belief still
    predicts a wrong answer on that test, a *remedial lesson* aimed at the particles that
    fail it.
-4. Stop when the belief predicts optimal answers to the held-out tests with probability at
-   least ``stop_threshold``, when no lesson would teach anything, or at ``max_items``.
+4. After the first test, a test at least every ``test_every`` items; when no lesson would
+   cut the belief, a test, or stop.
+5. Stop, after ``min_passes`` passed tests in a row, when the belief's mass inside the
+   regions of the teacher's own probe tests reaches ``stop_threshold`` (never the
+   post-tests), or at ``max_items``.
 
 The state is a pure function of (pool, settings, seed, responses): `replay` rebuilds it, so a
 server can restore a session from its event log and a simulation can be re-run exactly.
@@ -29,61 +33,24 @@ server can restore a session from its event log and a simulation can be re-run e
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from cfteach.closedloop import probes
 from cfteach.closedloop.belief import ParticleBelief
+from cfteach.closedloop.noisy_belief import NoisyBelief
 from cfteach.closedloop.pool import LessonPool
+from cfteach.closedloop.settings import TeacherSettings
+from cfteach.closedloop.steps import answer_steps, path_steps
 from cfteach.mdp.scoring import optimal_mask
 from cfteach.teaching.records import demo_json
 from cfteach.teaching.visual import tie_break
 
+__all__ = ["ClosedLoopTeacher", "Item", "TeacherSettings"]
+
 KINDS = ("demonstration", "test", "feedback")
-
-
-@dataclass(frozen=True)
-class TeacherSettings:
-    """How the closed-loop teacher models the learner and picks items."""
-
-    n_particles: int = 1000
-    p_learn: float = 0.8          # chance a shown demonstration is absorbed (belief model)
-    temperature: float = 0.5      # Boltzmann temperature of test answers (belief model)
-    zpd_proportion: float = 1.0   # target cut, as a share of the largest (paper's cf: 0.7)
-    zpd_band: tuple[float, float] = (0.3, 1.0)  # admissible cuts, as shares of the largest
-    min_gain: float = 0.02        # a lesson cutting less belief than this teaches nothing
-    stop_threshold: float = 0.95  # predicted P(optimal) on held-out tests that ends teaching
-    remedial_threshold: float = 0.8  # below this P(optimal) on a failed test: remedial lesson
-    min_discrimination: float = 0.05  # a diagnostic test must split the particles this much
-    max_items: int = 40           # demonstrations + tests + feedback
-
-    def __post_init__(self) -> None:
-        checks = [
-            ("n_particles", isinstance(self.n_particles, int) and self.n_particles >= 10,
-             "an integer >= 10"),
-            ("p_learn", 0 < self.p_learn < 1, "in (0, 1)"),
-            ("temperature", self.temperature > 0, "> 0"),
-            ("zpd_proportion", 0 < self.zpd_proportion <= 1, "in (0, 1]"),
-            ("zpd_band", len(self.zpd_band) == 2
-             and 0 <= self.zpd_band[0] <= self.zpd_proportion <= self.zpd_band[1] <= 1,
-             "(low, high) with 0 <= low <= zpd_proportion <= high <= 1"),
-            ("min_gain", 0 <= self.min_gain < 1, "in [0, 1)"),
-            ("stop_threshold", 0 < self.stop_threshold <= 1, "in (0, 1]"),
-            ("remedial_threshold", 0 <= self.remedial_threshold <= 1, "in [0, 1]"),
-            ("min_discrimination", 0 <= self.min_discrimination < 1, "in [0, 1)"),
-            ("max_items", isinstance(self.max_items, int) and self.max_items >= 1,
-             "an integer >= 1"),
-        ]
-        for name, ok, want in checks:
-            if not ok:
-                raise ValueError(f"closed-loop setting {name} must be {want}, "
-                                 f"got {getattr(self, name)!r}")
-
-    def to_json(self) -> dict[str, Any]:
-        out = asdict(self)
-        out["zpd_band"] = list(self.zpd_band)
-        return out
 
 
 @dataclass(frozen=True)
@@ -128,6 +95,8 @@ class _Outcome:
     correct: bool
     finished: bool
     mu: np.ndarray
+    states: list[int] | None = None   # visited before each move (when moves were given)
+    actions: list[int] | None = None
 
 
 @dataclass(eq=False)
@@ -140,10 +109,17 @@ class ClosedLoopTeacher:
 
     def __post_init__(self) -> None:
         ds = self.pool.ds
-        self.belief = ParticleBelief(np.asarray(self.pool.domain.prior).reshape(-1, ds.F),
-                                     ds.F, n_particles=self.settings.n_particles,
-                                     seed=self.seed, p_learn=self.settings.p_learn,
-                                     temperature=self.settings.temperature)
+        st = self.settings
+        prior = np.asarray(self.pool.domain.prior).reshape(-1, ds.F)
+        self.belief: ParticleBelief
+        if st.model == "noisy":
+            self.belief = NoisyBelief(prior, ds.F, n_particles=st.n_particles, seed=self.seed,
+                                      rationality=st.rationality, uptake=st.uptake,
+                                      disengaged=st.disengaged, lapse=st.lapse)
+        else:
+            self.belief = ParticleBelief(prior, ds.F, n_particles=st.n_particles,
+                                         seed=self.seed, p_learn=st.p_learn,
+                                         temperature=st.temperature)
         self.items: list[Item] = []
         self.responses: list[dict[str, Any]] = []
         self.outcomes: dict[int, _Outcome] = {}
@@ -151,8 +127,12 @@ class ClosedLoopTeacher:
         self._pending: Item | None = None
         self._used_tests: set[int] = set()
         self._held = np.array(sorted(self.pool.held_out), dtype=np.int64)
-        held_slots = self.pool.tests.slot[self._held] if len(self._held) else self._held
-        self._held_slots = held_slots[held_slots >= 0]
+        self._probes = probes.probe_demos(self.pool, st.n_probes)
+        self._no_lesson = probes.lesson_blocked(self.pool, st.n_probes)
+        self._usable_lessons = np.array([any(int(d) not in self._no_lesson for d in m)
+                                         for m in self.pool.lessons.members], dtype=bool)
+        self._progress = [0.0]
+        self._prediction_memo: tuple[Any, dict[str, float | None]] = (None, {})
 
     # -- the public loop -------------------------------------------------------------------
     @property
@@ -183,9 +163,7 @@ class ClosedLoopTeacher:
         ds = self.pool.ds
         if item.kind == "test":
             outcome = self._score(item.demo, response)
-            self.belief.observe_answer(ds.mu[item.demo].astype(float), outcome.mu,
-                                       self.pool.test_alternatives(item.demo),
-                                       finished=outcome.finished, correct=outcome.correct)
+            self._observe_answer(item.demo, outcome)
             self.outcomes[item.index] = outcome
             self._used_tests.add(item.demo)
         elif item.kind == "feedback":
@@ -200,6 +178,22 @@ class ClosedLoopTeacher:
         self.items.append(item)
         self.responses.append(response)
         self._pending = None
+        self._progress.append(self._next_progress())
+
+    def _observe_answer(self, d: int, outcome: _Outcome) -> None:
+        ds = self.pool.ds
+        if isinstance(self.belief, NoisyBelief):
+            if outcome.actions is not None:
+                self.belief.observe_steps(answer_steps(ds, int(ds.env[d]), outcome.states,
+                                                       outcome.actions, outcome.finished))
+            else:
+                data, _ = path_steps(ds, [d])
+                self.belief.observe_outcome(data, self.pool.test_rows.of(d).astype(float),
+                                            outcome.correct)
+            return
+        self.belief.observe_answer(ds.mu[d].astype(float), outcome.mu,
+                                   self.pool.test_alternatives(d),
+                                   finished=outcome.finished, correct=outcome.correct)
 
     @classmethod
     def replay(cls, pool: LessonPool, responses: list[dict[str, Any]], *,
@@ -214,14 +208,69 @@ class ClosedLoopTeacher:
 
     # -- summaries -------------------------------------------------------------------------
     def predicted_held_out(self) -> float | None:
-        """Belief's mean P(optimal) over the held-out tests (None without held-out tests)."""
+        """Belief mass inside the held-out tests' regions, averaged over them (None without
+        held-out tests; the study exports it as `predicted_held_out`). For analysis only: no
+        decision reads it (the teacher stops by its probes)."""
         if not len(self._held):
             return None
-        sat = self.pool.tests.satisfied(self.belief.particles)  # [K, P]
-        p_set = sat.astype(float) @ self.belief.weights
-        slots = self.pool.tests.slot[self._held]
-        p = np.where(slots >= 0, p_set[np.maximum(slots, 0)], 1.0)
+        sets, w = self.pool.tests, self.belief.weights
+        slots = sets.slot[self._held]
+        used = np.unique(slots[slots >= 0])
+        p = np.ones(len(slots))
+        if len(used):  # per distinct row set, in the order `study.live.held_out_p` uses
+            inc = sets.incidence[used]
+            cols = np.unique(inc.indices)
+            broken = (sets.rows[cols] @ self.belief.particles.T < -1e-9).astype(np.float32)
+            sat = np.asarray(inc[:, cols] @ broken) == 0
+            p_set = dict(zip(used.tolist(), (sat.astype(float) @ w).tolist(), strict=True))
+            p = np.array([p_set[int(k)] if k >= 0 else 1.0 for k in slots.tolist()])
         return float(p.mean())
+
+    def prediction(self) -> dict[str, float | None]:
+        """The belief's mean P(optimal) on the teacher's probes (`predicted`, with the
+        learner's noise) and the mass whose weights answer them optimally (`knowledge`)."""
+        if not len(self._probes):
+            return {"predicted": None, "knowledge": None}
+        key = (len(self.belief.history), self.belief.n_resamples)
+        if self._prediction_memo[0] != key:
+            p, k = self._predict(self._probes)
+            self._prediction_memo = (key, {"predicted": float(p.mean()),
+                                           "knowledge": float(k.mean())})
+        return dict(self._prediction_memo[1])
+
+    def knowledge(self) -> float | None:
+        """The belief's mass inside the probes' regions (mean over probes): what teaching
+        can still change. Cheaper than `prediction` (no per-step policy)."""
+        if not len(self._probes):
+            return None
+        sat = probes.region_sat(self.pool, self._probes, self.belief.particles)
+        return float((self.belief.weights @ sat.astype(float)).mean())
+
+    def _predict(self, demos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per test: P(optimal answer) and the belief mass inside its region."""
+        sat = probes.region_sat(self.pool, demos, self.belief.particles)
+        know = self.belief.weights @ sat.astype(float)
+        if not isinstance(self.belief, NoisyBelief):
+            return know, know
+        if np.array_equal(demos, self._probes):
+            data, starts = probes.probe_paths(self.pool, self.settings.n_probes)
+        else:
+            data, starts = path_steps(self.pool.ds, demos.tolist())
+        return self.belief.predicted(sat, data, starts), know
+
+    def progress(self) -> float:
+        """Share of the session done, for a progress bar: grows with every item (towards
+        1 at `max_items`) and jumps ahead as the probes' knowledge nears the stop; 1 when
+        done. A pure function of the items and the belief after each."""
+        return 1.0 if self.done else self._progress[-1]
+
+    def _next_progress(self) -> float:
+        prev = self._progress[-1]
+        left = max(self.settings.max_items - len(self.items) + 1, 1)
+        step = prev + (1.0 - prev) / left
+        know = self.knowledge()
+        ahead = 0.0 if know is None else min(0.95, know / self.settings.stop_threshold)
+        return float(min(1.0, max(step, ahead)))
 
     def counts(self) -> dict[str, int]:
         """Items shown so far by kind."""
@@ -236,13 +285,27 @@ class ClosedLoopTeacher:
                 "items": [it.to_json(self.pool) for it in self.items],
                 "responses": self.responses, "stop_reason": self.stop_reason,
                 "pending": None if self._pending is None else self._pending.to_json(self.pool),
+                "progress": list(self._progress),
                 "belief": self.belief.state_dict()}
 
     # -- decisions -------------------------------------------------------------------------
     def _rng(self) -> np.random.Generator:
         return np.random.default_rng([self.seed, 3, len(self.items)])
 
+    def _since_test(self) -> int | None:
+        """Items shown since the last test (None before the first test)."""
+        for back, it in enumerate(reversed(self.items)):
+            if it.kind == "test":
+                return back
+        return None
+
     def _decide(self) -> Item | None:
+        """The next item (docs/closed-loop.md, "The conversation"): feedback after a failed
+        test; a diagnostic test after a lesson; a test at least every `test_every` items
+        after the first; else stop when the probes say so, or a lesson; when no lesson
+        would cut the belief, a test, or stop. Never the same lesson more than
+        `max_repeat` times in a row."""
+        st = self.settings
         last = self.items[-1] if self.items else None
         k = len(self.items)
         if last is not None and last.kind == "test" and not self.outcomes[last.index].correct:
@@ -252,16 +315,37 @@ class ClosedLoopTeacher:
             diag = self._diagnostic(last)
             if diag is not None:
                 return diag
-        failed = self._open_failure()
-        if failed is None:
-            p = self.predicted_held_out()
-            if p is not None and p >= self.settings.stop_threshold:
-                self.stop_reason = f"predicted P(optimal) on held-out tests {p:.3f}"
+        since = self._since_test()
+        if since is not None and since >= st.test_every:
+            check = self._check_test()
+            if check is not None:
+                return check
+            self.stop_reason = "no diagnostic test left"
+            return None
+        if self._passes_in_a_row() >= st.min_passes:
+            know = self.knowledge()
+            if know is not None and know >= st.stop_threshold:
+                self.stop_reason = f"knowledge on the probes {know:.3f}"
                 return None
-        lesson = self._lesson(failed)
-        if lesson is None:
-            self.stop_reason = "no lesson would cut the belief"
-        return lesson
+        lesson = self._lesson(self._open_failure())
+        if lesson is not None:
+            return lesson
+        if last is None or last.kind != "test":
+            check = self._check_test()
+            if check is not None:
+                return check
+        self.stop_reason = "no lesson would cut the belief"
+        return None
+
+    def _passes_in_a_row(self) -> int:
+        """Tests passed since the last failed one."""
+        n = 0
+        for it in reversed(self.items):
+            if it.kind == "test":
+                if not self.outcomes[it.index].correct:
+                    break
+                n += 1
+        return n
 
     def _open_failure(self) -> Item | None:
         """The last test, if it was failed and the belief still predicts a wrong answer."""
@@ -274,29 +358,49 @@ class ClosedLoopTeacher:
         rows = self.pool.test_rows.of(t.demo).astype(float)
         return t if self.belief.p_optimal(rows) < self.settings.remedial_threshold else None
 
-    def _pick(self, slots: np.ndarray, shown: set[int]) -> int:
+    def _blocked_lessons(self) -> set[int]:
+        """Demos not to show now: held-out and probe starts, and a demonstration already
+        shown `max_repeat` times in a row."""
+        demos = [it.demo for it in self.items if it.kind == "demonstration"]
+        r = self.settings.max_repeat
+        out = set(self._no_lesson)
+        if len(demos) >= r and len(set(demos[-r:])) == 1:
+            out.add(demos[-1])
+        return out
+
+    def _pick(self, slots: np.ndarray, blocked: set[int]) -> int:
         """One demo among those of the given row sets: unseen first, then tie-break."""
-        members = np.concatenate([self.pool.lessons.members[s] for s in slots.tolist()])
-        fresh = [int(d) for d in members if int(d) not in shown]
+        members = [int(d) for s in slots.tolist() for d in self.pool.lessons.members[s]
+                   if int(d) not in blocked]
+        shown = self._shown()
+        fresh = [d for d in members if d not in shown]
         prev = next((it.demo for it in reversed(self.items) if it.kind == "demonstration"),
                     None)
-        return tie_break(self.pool.ds, fresh or members.tolist(), prev, self._rng())
+        return tie_break(self.pool.ds, fresh or members, prev, self._rng())
 
     def _lesson(self, failed: Item | None) -> Item | None:
         st = self.settings
+        if not self.pool.lessons.n_sets:
+            return None
+        blocked = self._blocked_lessons()
+        usable = self._usable_lessons.copy()
+        for d in blocked - self._no_lesson:  # a repeated demo's set, if it has no other
+            s = int(self.pool.lessons.slot[d])
+            if s >= 0 and all(int(m) in blocked for m in self.pool.lessons.members[s]):
+                usable[s] = False
+        if not usable.any():
+            return None
         sat = self.pool.lessons.satisfied(self.belief.particles)  # [K, P]
         w = self.belief.weights
-        if not sat.shape[0]:
-            return None
         if failed is not None:  # aim at the particles that still fail the test
             fails = self._failing(failed.demo)
-            mass = (~sat & fails[None]).astype(float) @ w
-            if mass.max() > 0:
+            mass = np.where(usable, (~sat & fails[None]).astype(float) @ w, -1.0)
+            if mass.max() > st.min_gain:
                 best = np.flatnonzero(mass >= mass.max() - 1e-12)
-                d = self._pick(best, self._shown())
+                d = self._pick(best, blocked)
                 return Item(len(self.items), "demonstration", "remedial", d,
                             about=failed.index, gain=float((~sat[best[0]]).astype(float) @ w))
-        gain = (~sat).astype(float) @ w
+        gain = np.where(usable, (~sat).astype(float) @ w, -1.0)
         top = gain.max()
         if top < st.min_gain:
             return None
@@ -305,7 +409,7 @@ class ClosedLoopTeacher:
         target = st.zpd_proportion * top
         dist = np.abs(gain[inside] - target)
         best = inside[dist <= dist.min() + 1e-12]
-        d = self._pick(best, self._shown())
+        d = self._pick(best, blocked)
         return Item(len(self.items), "demonstration", "lesson", d, gain=float(gain[best[0]]))
 
     def _failing(self, test_demo: int) -> np.ndarray:
@@ -315,6 +419,26 @@ class ClosedLoopTeacher:
 
     def _shown(self) -> set[int]:
         return {it.demo for it in self.items if it.kind == "demonstration"}
+
+    def _test_usable(self) -> np.ndarray:
+        """bool per test row set: it has a member that may be given as a test now (never a
+        held-out test, a probe, a test already given, or a start already demonstrated)."""
+        blocked = self._test_blocked()
+        return np.array([any(int(d) not in blocked for d in m)
+                         for m in self.pool.tests.members], dtype=bool)
+
+    def _test_blocked(self) -> set[int]:
+        return (set(self.pool.held_out) | set(self._probes.tolist()) | self._used_tests
+                | self._shown())
+
+    def _test_item(self, best: np.ndarray, about: int | None, purpose: str,
+                   prev: int | None) -> Item:
+        blocked = self._test_blocked()
+        cands = [int(d) for k in best.tolist() for d in self.pool.tests.members[k]
+                 if int(d) not in blocked]
+        d = tie_break(self.pool.ds, cands, prev, self._rng())
+        p_opt = float(self._predict(np.array([d]))[0][0])
+        return Item(len(self.items), "test", purpose, d, about=about, predicted_optimal=p_opt)
 
     def _diagnostic(self, lesson: Item) -> Item | None:
         """The test that best tells particles that absorbed `lesson` from those that did not."""
@@ -328,22 +452,24 @@ class ClosedLoopTeacher:
         sat = self.pool.tests.satisfied(P).astype(float)  # [K, P]
         p_in = sat[:, absorbed] @ w[absorbed] / m_in
         p_out = sat[:, ~absorbed] @ w[~absorbed] / m_out
-        score = p_in - p_out
-        usable = np.zeros(self.pool.tests.n_sets, dtype=bool)
-        # never a held-out test, a test already given, or a start already demonstrated
-        blocked = self.pool.held_out | self._used_tests | self._shown()
-        for k, members in enumerate(self.pool.tests.members):
-            usable[k] = any(int(d) not in blocked for d in members)
-        score = np.where(usable, score, -np.inf)
+        score = np.where(self._test_usable(), p_in - p_out, -np.inf)
         if not np.isfinite(score).any() or score.max() < self.settings.min_discrimination:
             return None
         best = np.flatnonzero(score >= score.max() - 1e-12)
-        cands = [int(d) for k in best.tolist() for d in self.pool.tests.members[k]
-                 if int(d) not in blocked]
-        d = tie_break(self.pool.ds, cands, lesson.demo, self._rng())
-        p_opt = float(sat[self.pool.tests.slot[d]] @ w)
-        return Item(len(self.items), "test", "diagnostic", d, about=lesson.index,
-                    predicted_optimal=p_opt)
+        return self._test_item(best, lesson.index, "diagnostic", lesson.demo)
+
+    def _check_test(self) -> Item | None:
+        """A test whose outcome the belief is least sure of (P(optimal) closest to 1/2):
+        the regular check between lessons, and the step after a lesson that cut nothing."""
+        usable = self._test_usable()
+        if not usable.any():
+            return None
+        p = self.pool.tests.satisfied(self.belief.particles).astype(float) @ self.belief.weights
+        score = np.where(usable, p * (1 - p), -np.inf)
+        best = np.flatnonzero(score >= score.max() - 1e-12)
+        last = next((it for it in reversed(self.items) if it.kind == "demonstration"), None)
+        return self._test_item(best, None if last is None else last.index, "check",
+                               None if last is None else last.demo)
 
     # -- scoring ---------------------------------------------------------------------------
     def _score(self, d: int, response: dict[str, Any]) -> _Outcome:
@@ -354,6 +480,7 @@ class ClosedLoopTeacher:
         if "actions" in response:
             s = int(ds.start[d])
             mu = np.zeros(ds.F)
+            states, actions = [], []
             for t, name in enumerate(response["actions"]):
                 if name not in b.actions:
                     raise ValueError(f"test answer: unknown action {name!r} at step {t} "
@@ -361,6 +488,8 @@ class ClosedLoopTeacher:
                 if s == b.sink:
                     raise ValueError(f"test answer continues after the end (step {t})")
                 a = b.actions.index(name)
+                states.append(s)
+                actions.append(a)
                 mu += b.features[e, s, a]
                 s = int(b.next_state[e, s, a])
             finished = s == b.sink
@@ -370,8 +499,9 @@ class ClosedLoopTeacher:
                 raise ValueError(f"test answer: feature_counts needs {ds.F} numbers, "
                                  f"got {response['feature_counts']!r}")
             finished = bool(response.get("finished", True))
+            states = actions = None
         else:
             raise ValueError("a test answer needs 'actions' or 'feature_counts'")
         reward = float(ds.weights @ mu)
         correct = bool(optimal_mask(reward, ds.reward(d), finished))
-        return _Outcome(correct, finished, mu)
+        return _Outcome(correct, finished, mu, states, actions)

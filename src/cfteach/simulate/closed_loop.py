@@ -21,6 +21,8 @@ import numpy as np
 
 CLOSED_LOOP = "closed_loop"
 EQUAL_BUDGET = "proposed_equal_budget"
+#: Per learner, `proposed` shown as many items as that learner's closed-loop session.
+EQUAL_ITEMS = "proposed_equal_items"
 
 
 @cache
@@ -49,10 +51,9 @@ def run_session(teacher: Any, learners: Any) -> dict[str, int]:
     pool = teacher.pool
     while (item := teacher.next()) is not None:
         shown = item.to_json(pool)
-        if item.kind == "test":
-            ans = learners.answer([shown])
-            teacher.observe({"feature_counts": ans["feature_counts"][0, 0].tolist(),
-                             "finished": bool(ans["finished"][0, 0])})
+        if item.kind == "test":  # the teacher sees the moves, as the study's server does
+            ans = learners.answer([shown], moves=True)
+            teacher.observe({"actions": ans["actions"][0][0]})
         else:
             learners.observe(shown)  # feedback shows the optimal answer: a demonstration
             teacher.observe({})
@@ -72,12 +73,14 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
     ss = np.random.SeedSequence(chunk["entropy"])
     keys = ("correct", "reward", "finished", "contains_w_star", "belief_area",
             "belief_area_se", "belief_constraints", "ignored_updates")
-    out: dict[str, list] = {k: [] for k in (*keys, "items", "demos", "tests", "feedback")}
+    out: dict[str, list] = {k: [] for k in (*keys, "items", "demos", "tests", "feedback",
+                                            "predicted", "knowledge")}
     for child in ss.spawn(chunk["n"]):
         learner_rng, teacher_seed = np.random.default_rng(child), child.generate_state(1)[0]
         learners = Learners(dom, chunk["model"], 1, rng=learner_rng)
         teacher = ClosedLoopTeacher(pool, settings, seed=int(teacher_seed))
         counts = run_session(teacher, learners)
+        pred = teacher.prediction()  # on the teacher's own probes, at its stop
         ans = learners.answer(chunk["tests"]) if chunk["tests"] else None
         areas, se = learners.belief_area_estimates()
         for k, v in (("correct", None if ans is None else ans["correct"][0]),
@@ -88,7 +91,9 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
                      ("belief_constraints", len(learners.beliefs[0])),
                      ("ignored_updates", learners.ignored[0]),
                      ("items", sum(counts.values())), ("demos", counts["demonstration"]),
-                     ("tests", counts["test"]), ("feedback", counts["feedback"])):
+                     ("tests", counts["test"]), ("feedback", counts["feedback"]),
+                     ("predicted", np.nan if pred["predicted"] is None else pred["predicted"]),
+                     ("knowledge", np.nan if pred["knowledge"] is None else pred["knowledge"])):
             out[k].append(v)
     res: dict[str, Any] = {k: np.asarray(v) for k, v in out.items()}
     res["optimal_reward"] = None if ans is None else ans["optimal_reward"]
@@ -104,3 +109,53 @@ def equal_budget_demos(curriculum: dict[str, Any], budget: int) -> list[dict[str
         return []
     return [demos[k % len(demos)] for k in range(budget)]
 
+
+def equal_budget_override(material: list[Any], result: Any, *, profile: str,
+                          human_models: int, known: str | None = None
+                          ) -> dict[tuple[str, int, str, str], list]:
+    """The `proposed_equal_budget` demonstrations per (domain, seed, learner model): the
+    `proposed` curriculum capped at closed-loop's mean demonstrations + feedback for that
+    learner model, repeated from the start when it stops early (blind repetition)."""
+    from cfteach import teaching
+    from cfteach.simulate.sweep import domain_label, load_domain
+
+    b = result.beliefs[result.beliefs["condition"] == CLOSED_LOOP]
+    shown = (b["demos"] + b["feedback"]).groupby(
+        [b["domain"], b["seed"], b["learner_model"]], observed=True).mean()
+    taught: dict[tuple[str, int, int], dict[str, Any]] = {}
+    out: dict[tuple[str, int, str, str], list] = {}
+    for (label, mseed, model), mean in shown.items():
+        mat = next(m for m in material if domain_label(m.domain) == label and m.seed == mseed)
+        cap = max(1, int(round(float(mean))))
+        if (label, mseed, cap) not in taught:
+            taught[(label, mseed, cap)] = teaching.teach(
+                load_domain(mat.domain), "proposed", profile=profile, seed=mseed,
+                human_models=human_models, max_demos=cap, known=known).to_json()
+        out[(label, int(mseed), EQUAL_BUDGET, str(model))] = equal_budget_demos(
+            taught[(label, mseed, cap)], cap)
+    return out
+
+
+def equal_items_override(material: list[Any], result: Any, *, profile: str,
+                         human_models: int, known: str | None = None
+                         ) -> dict[tuple[str, int, str, str], dict]:
+    """The `proposed_equal_items` demonstrations per (domain, seed, learner model) and
+    learner: the `proposed` curriculum (taught up to the longest closed-loop session)
+    cut to, or repeated from the start up to, the number of items that learner's own
+    closed-loop session showed, tests and feedback included."""
+    from cfteach import teaching
+    from cfteach.simulate.sweep import domain_label, load_domain
+
+    b = result.beliefs[result.beliefs["condition"] == CLOSED_LOOP]
+    out: dict[tuple[str, int, str, str], dict] = {}
+    for (label, mseed, model), g in b.groupby(["domain", "seed", "learner_model"],
+                                               observed=True):
+        mat = next(m for m in material if domain_label(m.domain) == label and m.seed == mseed)
+        cap = max(1, int(g["items"].max()))
+        taught = teaching.teach(load_domain(mat.domain), "proposed", profile=profile,
+                                seed=int(mseed), human_models=human_models,
+                                max_demos=cap, known=known).to_json()
+        out[(str(label), int(mseed), EQUAL_ITEMS, str(model))] = {
+            int(i): equal_budget_demos(taught, max(1, int(n)))
+            for i, n in zip(g["learner"], g["items"], strict=True)}
+    return out

@@ -388,11 +388,14 @@ class Learners:
         return np.array([e[0] for e in est]), np.array([e[1] for e in est])
 
     # -- testing -----------------------------------------------------------------------
-    def answer(self, tests: Sequence[dict[str, Any]]) -> dict[str, np.ndarray]:
+    def answer(self, tests: Sequence[dict[str, Any]], *, moves: bool = False
+               ) -> dict[str, Any]:
         """Every learner plays every test. Returns `reward`, `finished`, `correct` (all
         `[n, len(tests)]`), `feature_counts` `[n, len(tests), F]` of the answers and
-        `optimal_reward` `[len(tests)]`."""
+        `optimal_reward` `[len(tests)]`; with `moves`, also `actions[i][j]`: learner i's
+        moves on test j (action names), drawn with the same random numbers."""
         from cfteach.mdp import greedy_actions, rollout_from
+        from cfteach.simulate.planning import policy_paths
 
         T = len(tests)
         reward = np.zeros((self.n, T))
@@ -400,6 +403,7 @@ class Learners:
         finished = np.zeros((self.n, T), dtype=bool)
         optimal = np.zeros(T)
         by_env: dict[int, list[int]] = {}
+        paths: list[list[list[str]]] = [[[] for _ in range(T)] for _ in range(self.n)]
         starts = np.zeros(T, dtype=np.intp)
         for j, t in enumerate(tests):
             env = _env_of(self.domain, t)
@@ -416,20 +420,33 @@ class Learners:
             st = np.broadcast_to(starts[js], (self.n, len(js)))
             nxt, feats = self.batch.next_state[env], self.batch.features[env]
             max_steps = 4 * int(self.batch.n_states[env]) + 4
+            record: list = []
             if self.model.temperature > 0:
                 mu, fin, _ = boltzmann_rollouts(nxt, feats, q, st, self.model.temperature,
-                                                self.rng, max_steps=max_steps)
+                                                self.rng, max_steps=max_steps,
+                                                record=record if moves else None)
             else:
-                ro = rollout_from(self.batch, greedy_actions(q), env, st, max_steps=max_steps,
+                policy = greedy_actions(q)
+                ro = rollout_from(self.batch, policy, env, st, max_steps=max_steps,
                                   max_self_loops=None)
                 mu, fin = ro.mu, ro.terminal
+                if moves:
+                    record.append(policy_paths(nxt, policy, st, max_steps=max_steps))
+            if moves:
+                for i in range(self.n):
+                    for jj, j in enumerate(js):
+                        acts = record[0][i, jj]
+                        paths[i][j] = [self.batch.actions[int(a)] for a in acts[acts >= 0]]
             fin &= bounded[:, None]
             reward[:, js] = mu @ self.w_true
             counts[:, js] = mu
             finished[:, js] = fin
         correct = score_answers(reward, finished, optimal[None, :])
-        return {"reward": reward, "finished": finished, "correct": correct,
-                "optimal_reward": optimal, "feature_counts": counts}
+        out: dict[str, Any] = {"reward": reward, "finished": finished, "correct": correct,
+                               "optimal_reward": optimal, "feature_counts": counts}
+        if moves:
+            out["actions"] = paths
+        return out
 
 
 def _env_of(domain: Any, item: dict[str, Any]) -> int:

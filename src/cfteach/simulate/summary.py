@@ -81,30 +81,44 @@ def proportion_table(df: pd.DataFrame) -> list[dict[str, Any]]:
 
 
 def answer_regret(df: pd.DataFrame) -> np.ndarray:
-    """Regret of each answer: optimal reward minus the answer's true reward, never below 0.
+    """Regret of each answer: optimal reward minus the answer's true reward, never below 0,
+    and exactly 0 for an optimal answer (scored as the study scores it: `correct`), not a
+    rounding error of the two sums.
 
     An answer that never finishes keeps the reward it collected until the rollout's step
     cap (4 x the instance's states + 4 steps), so its regret is what wandering that long
     costs: the documented cap for unfinished answers.
     """
-    return np.maximum(0.0, df["optimal_reward"].to_numpy(float) - df["reward"].to_numpy(float))
+    gap = np.maximum(0.0, df["optimal_reward"].to_numpy(float) - df["reward"].to_numpy(float))
+    if "correct" in df.columns:
+        gap = np.where(df["correct"].to_numpy(bool), 0.0, gap)
+    return gap
+
+
+def per_learner(df: pd.DataFrame) -> pd.DataFrame:
+    """Each learner's mean regret (`answer_regret`) and proportion of optimal answers."""
+    correct = df["correct"].astype(float) if "correct" in df.columns else np.nan
+    return df.assign(regret=answer_regret(df), p_optimal=correct).groupby(
+        ["learner_model", "domain", "condition", "seed", "learner"], observed=True
+    )[["regret", "p_optimal"]].mean().reset_index()
 
 
 def regret_table(df: pd.DataFrame) -> dict[str, dict[str, dict[str, dict[str, Any]]]]:
-    """``regret[learner_model][domain][condition] = {mean, ci_low, ci_high, n_learners}``:
-    each learner's mean regret over the tests (`answer_regret`), then the mean over
-    learners with a t-based 95% CI."""
+    """``regret[learner_model][domain][condition] = {mean, ci_low, ci_high, median,
+    p_optimal, n_learners}``: each learner's mean regret over the tests (`answer_regret`),
+    then the mean over learners with a t-based 95% CI, the median over learners, and the
+    mean proportion of optimal answers."""
     if df.empty:
         return {}
-    per = df.assign(regret=answer_regret(df)).groupby(
-        ["learner_model", "domain", "condition", "seed", "learner"], observed=True
-    )["regret"].mean().reset_index()
+    per = per_learner(df)
     out: dict[str, dict[str, dict[str, dict[str, Any]]]] = {}
     for (model, dom, cond), g in per.groupby(["learner_model", "domain", "condition"],
                                              observed=True):
         m, lo, hi = mean_ci(g["regret"].to_numpy(float))
         out.setdefault(str(model), {}).setdefault(str(dom), {})[str(cond)] = {
-            "mean": m, "ci_low": max(0.0, lo), "ci_high": hi, "n_learners": int(len(g))}
+            "mean": m, "ci_low": max(0.0, lo), "ci_high": hi,
+            "median": float(np.median(g["regret"])), "p_optimal": float(g["p_optimal"].mean()),
+            "n_learners": int(len(g))}
     return out
 
 

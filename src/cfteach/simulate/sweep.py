@@ -26,10 +26,13 @@ from cfteach.jsonable import to_jsonable
 from cfteach.simulate.closed_loop import (
     CLOSED_LOOP,
     EQUAL_BUDGET,
+    EQUAL_ITEMS,
     closed_loop_chunk,
-    equal_budget_demos,
+    equal_budget_override,
+    equal_items_override,
     held_key,
 )
+from cfteach.simulate.compare import calibration_table, ratio_table
 from cfteach.simulate.learners import LearnerModel, Learners, learner_model
 from cfteach.simulate.summary import (
     h1_correlations,
@@ -224,6 +227,8 @@ def _simulate_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
         "demos": np.full(chunk["n"], len(chunk["demos"])),
         "tests": np.zeros(chunk["n"], dtype=np.int64),
         "feedback": np.zeros(chunk["n"], dtype=np.int64),
+        "predicted": np.full(chunk["n"], np.nan),
+        "knowledge": np.full(chunk["n"], np.nan),
     }
 
 
@@ -249,6 +254,9 @@ class SweepResult:
             else [],
             "regret": regret_table(sel) if len(sel) else {},
             "items_shown": items_table(self.beliefs),
+            "ratios": ratio_table(sel, seed=int(self.settings.get("seed", 0))) if len(sel)
+            else {},
+            "calibration": calibration_table(sel, self.beliefs) if len(sel) else {},
             "beliefs": _belief_summary(self.beliefs),
             "timing_seconds": self.timing,
         }
@@ -330,7 +338,8 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
     ``closed_loop`` gives every learner a closed-loop teacher of its own (settings
     `teacher`, `cfteach.closedloop.TeacherSettings`), with the material's selected tests
     held out. `demos_override[(domain label, material seed, condition, learner model)]`
-    replaces a condition's demonstrations for one learner model (the equal-budget control).
+    replaces a condition's demonstrations for one learner model (the equal-budget control),
+    or, as ``{learner id: demonstrations}``, for each learner (the equal-items control).
     """
     from cfteach.parallel import chunk_slices, map_chunks
 
@@ -364,26 +373,33 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
                     shown = demos_override[key]
                 elif cond not in mat.curricula and cond not in (NO_TEACHING, CLOSED_LOOP):
                     raise ValueError(f"no curriculum for condition {cond!r} in domain {label}")
-                for b, sl in enumerate(chunk_slices(n_learners, chunk_size=chunk_learners)):
-                    chunks.append({"domain": mat.domain, "model": model, "n": sl.stop - sl.start,
-                                   "demos": shown, "tests": public,
-                                   "entropy": _entropy(seed, mat.seed, label, cond, model.name,
-                                                       b), **extra})
-                    meta.append((label, mat.seed, cond, model.name, sl, items))
+                # per-learner demonstrations (proposed_equal_items): one group per length
+                groups = ([(np.arange(n_learners), shown, ())] if not isinstance(shown, dict)
+                          else [(np.array(sorted(i for i in shown if len(shown[i]) == k)),
+                                 next(v for v in shown.values() if len(v) == k), (k,))
+                                for k in sorted({len(v) for v in shown.values()})])
+                for ids, group_demos, tag in groups:
+                    for b, sl in enumerate(chunk_slices(len(ids), chunk_size=chunk_learners)):
+                        chunks.append({"domain": mat.domain, "model": model,
+                                       "n": sl.stop - sl.start, "demos": group_demos,
+                                       "tests": public,
+                                       "entropy": _entropy(seed, mat.seed, label, cond,
+                                                           model.name, b, *tag), **extra})
+                        meta.append((label, mat.seed, cond, model.name, ids[sl], items))
     t0 = time.perf_counter()
     results = map_chunks(_simulate_chunk, chunks, progress=progress, desc="simulating",
                          executor=executor)
     elapsed = time.perf_counter() - t0
     frames, belief_rows = [], []
-    for (label, mseed, cond, model, sl, items), res in zip(meta, results, strict=True):
-        ids = np.arange(sl.start, sl.stop)
+    for (label, mseed, cond, model, ids, items), res in zip(meta, results, strict=True):
         belief_rows.append(pd.DataFrame({
             "learner_model": model, "domain": label, "condition": cond, "seed": mseed,
             "learner": ids, "contains_w_star": res["contains_w_star"],
             "belief_area": res["belief_area"], "belief_area_se": res["belief_area_se"],
             "belief_constraints": res["belief_constraints"],
             "ignored_updates": res["ignored_updates"], "items": res["items"],
-            "demos": res["demos"], "tests": res["tests"], "feedback": res["feedback"]}))
+            "demos": res["demos"], "tests": res["tests"], "feedback": res["feedback"],
+            "predicted": res["predicted"], "knowledge": res["knowledge"]}))
         if res["correct"] is None:
             continue
         n, t = res["correct"].shape
@@ -421,31 +437,6 @@ def check_teacher(teacher: dict[str, Any]) -> None:
     if bad:
         raise ValueError(f"unknown closed-loop setting(s) {bad}; known: {', '.join(sorted(known))}")
     TeacherSettings(**teacher)
-
-
-def equal_budget_override(material: list[Material], result: SweepResult, *, profile: str,
-                          human_models: int, known: str | None = None
-                          ) -> dict[tuple[str, int, str, str], list]:
-    """The `proposed_equal_budget` demonstrations per (domain, seed, learner model): the
-    `proposed` curriculum capped at closed-loop's mean demonstrations + feedback for that
-    learner model, repeated from the start when it stops early (blind repetition)."""
-    from cfteach import teaching
-
-    b = result.beliefs[result.beliefs["condition"] == CLOSED_LOOP]
-    shown = (b["demos"] + b["feedback"]).groupby(
-        [b["domain"], b["seed"], b["learner_model"]], observed=True).mean()
-    taught: dict[tuple[str, int, int], dict[str, Any]] = {}
-    out: dict[tuple[str, int, str, str], list] = {}
-    for (label, mseed, model), mean in shown.items():
-        mat = next(m for m in material if domain_label(m.domain) == label and m.seed == mseed)
-        cap = max(1, int(round(float(mean))))
-        if (label, mseed, cap) not in taught:
-            taught[(label, mseed, cap)] = teaching.teach(
-                load_domain(mat.domain), "proposed", profile=profile, seed=mseed,
-                human_models=human_models, max_demos=cap, known=known).to_json()
-        out[(label, int(mseed), EQUAL_BUDGET, str(model))] = equal_budget_demos(
-            taught[(label, mseed, cap)], cap)
-    return out
 
 
 def run_sweep(domains: list[str], conditions: list[str] | None = None,
@@ -494,9 +485,11 @@ def run_sweep(domains: list[str], conditions: list[str] | None = None,
         result = simulate(material, models, conditions=conditions, **common)
         if CLOSED_LOOP in conditions:
             t1 = time.perf_counter()
-            override = equal_budget_override(material, result, profile=profile,
-                                             human_models=human_models, known=known)
-            control = simulate(material, models, conditions=[EQUAL_BUDGET],
+            override: dict[tuple[str, int, str, str], Any] = equal_budget_override(
+                material, result, profile=profile, human_models=human_models, known=known)
+            override.update(equal_items_override(material, result, profile=profile,
+                                                 human_models=human_models, known=known))
+            control = simulate(material, models, conditions=[EQUAL_BUDGET, EQUAL_ITEMS],
                                demos_override=override, **common)
             result = result.merged(control)
             result.timing["equal_budget"] = time.perf_counter() - t1

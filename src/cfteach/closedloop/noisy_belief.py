@@ -1,0 +1,398 @@
+"""A particle belief for learners who err: weights, rationality and uptake inferred jointly.
+
+`ParticleBelief` models a learner by their reward weights alone, with a fixed temperature and
+a fixed chance of absorbing a demonstration. A person who errs then looks like a person with
+strange weights. Here every particle carries three things:
+
+* ``w``: the learner's reward weights (a unit vector inside the prior), as before;
+* ``beta``: their rationality, one of the values of a grid (`rationality`); they pick action
+  ``a`` in state ``s`` with probability ``(1 - lapse) * softmax_a(beta * Q_w(s, a)) +
+  lapse / A`` (a per-step Boltzmann policy plus a small lapse rate);
+* ``u``: their uptake, one of the values of a grid (`uptake`): the chance that a shown
+  demonstration (or feedback) changed what they believe. A demonstration with constraint rows
+  ``C`` has likelihood ``u * 1[C w >= 0] + (1 - u)``;
+* ``lambda``: their disengagement, one of the values of a grid (`disengaged`): the chance
+  that a whole answer was not an attempt at all (uniformly random moves). An answer's
+  likelihood is ``(1 - lambda) * L_policy + lambda * L_random``, so one wild answer among
+  good ones does not make the learner irrational for good.
+
+``Q_w(s, a) = w . Psi(s, a)`` with ``Psi(s, a)`` the feature counts of taking ``a`` in ``s``
+and then following the robot's optimal policy (the one-action deviations of standard IRL;
+`DemoSet.dev_mu`): linear in ``w``, so a whole answer's likelihood under every particle is one
+matrix product. A test answer given as moves is scored step by step; one given only as its
+outcome (optimal or not) by the chance of an optimal answer, `p_optimal_paths`.
+
+A long wandering answer is then best explained by a low ``beta`` (or weights under which the
+moves were nearly free) and lowers the predicted success instead of raising it. Everything
+else (resample-move, the reference points behind `expected_area`, determinism given the
+seed and the observations) is `ParticleBelief`'s; the discrete parameters move by
+Metropolis-Hastings too (a uniform proposal over the other grid values, symmetric).
+Equations: docs/closed-loop.md.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from cfteach.closedloop.belief import TOL, ParticleBelief, _check_rows
+
+#: Rationality grid: Q-value differences of a domain's actions are about 0.1-0.2 (weights are
+#: unit vectors), so beta = 2 is close to random and beta = 300 close to greedy.
+RATIONALITY = (5.0, 10.0, 20.0, 50.0, 100.0, 300.0)
+#: Uptake grid: the chance a shown demonstration is taken in.
+UPTAKE = (0.2, 0.4, 0.6, 0.8, 0.95)
+#: Disengagement grid: the chance a whole answer is random moves.
+DISENGAGED = (0.01, 0.05, 0.2)
+
+__all__ = ["DISENGAGED", "RATIONALITY", "UPTAKE", "NoisyBelief", "StepData"]
+
+
+class StepData:
+    """Per-step choice data of some states: for each state (a group) the rows ``Psi(s, a)``
+    of its A actions (``rows [G, A, F]``), how often each was taken (``counts [G, A]``) or
+    which are optimal (``optimal [G, A]``). ``alt [G, F]`` / ``alt_action [G]`` (-1: none)
+    give a plan the learner is known to have for one action of a group (the rest of their
+    own finished answer): ``Q_w(s, a)`` is the better of ``w . Psi(s, a)`` and ``w . alt``,
+    as both are plans that start with ``a``."""
+
+    def __init__(self, rows: np.ndarray, counts: np.ndarray | None = None,
+                 optimal: np.ndarray | None = None, alt: np.ndarray | None = None,
+                 alt_action: np.ndarray | None = None) -> None:
+        self.rows = np.asarray(rows, dtype=np.float64)
+        if self.rows.ndim != 3:
+            raise ValueError(f"StepData rows: expected shape [G, A, F], got {self.rows.shape}")
+        self.counts = None if counts is None else np.asarray(counts, dtype=np.float64)
+        self.optimal = None if optimal is None else np.asarray(optimal, dtype=bool)
+        self.alt = None if alt is None else np.asarray(alt, dtype=np.float64)
+        self.alt_action = None if alt_action is None else np.asarray(alt_action, np.int64)
+
+    def x(self, points: np.ndarray) -> np.ndarray:
+        """``Q_w(s, a)`` for every point, state and action: ``[P, G, A]``."""
+        x = np.einsum("pf,gaf->pga", points, self.rows, optimize=True)
+        if self.alt is not None and len(self.alt):
+            g = np.flatnonzero(self.alt_action >= 0)
+            a = self.alt_action[g]
+            x[:, g, a] = np.maximum(x[:, g, a], points @ self.alt[g].T)
+        return x
+
+    @classmethod
+    def of(cls, entry: dict[str, Any]) -> StepData:
+        return cls(entry["rows"], entry.get("counts"), entry.get("optimal"), entry.get("alt"),
+                   entry.get("alt_action"))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"rows": self.rows, "counts": self.counts, "optimal": self.optimal,
+                "alt": self.alt, "alt_action": self.alt_action}
+
+
+def _as_grid(values: Any, name: str, low: float, high: float) -> np.ndarray:
+    arr = np.asarray(values, dtype=np.float64).ravel()
+    if not len(arr) or not np.all(np.isfinite(arr)) or np.any(arr <= low) or np.any(arr >= high):
+        raise ValueError(f"{name}: expected one or more numbers in ({low}, {high}), "
+                         f"got {values!r}")
+    return arr
+
+
+class NoisyBelief(ParticleBelief):
+    """Weighted particles over (weights, rationality, uptake, disengagement) (module
+    docstring). ``idx[name]`` holds each particle's index into ``grids[name]``."""
+
+    def __init__(self, prior: np.ndarray, dim: int, *, n_particles: int = 1000, seed: int = 0,
+                 rationality: Any = RATIONALITY, uptake: Any = UPTAKE,
+                 disengaged: Any = DISENGAGED, lapse: float = 0.01, n_reference: int = 4000,
+                 particles: np.ndarray | None = None, resample: bool = True,
+                 n_moves: int = 3) -> None:
+        super().__init__(prior, dim, n_particles=n_particles, seed=seed, p_learn=0.5,
+                         temperature=1.0, n_reference=n_reference, particles=particles,
+                         resample=resample, n_moves=n_moves)
+        self.grids = {"beta": _as_grid(rationality, "rationality", 0.0, math.inf),
+                      "uptake": _as_grid(uptake, "uptake", 0.0, 1.0),
+                      "disengaged": _as_grid(disengaged, "disengaged", 0.0, 1.0)}
+        lapse = float(lapse)
+        if not 0.0 <= lapse < 1.0:
+            raise ValueError(f"lapse must lie in [0, 1), got {lapse!r}")
+        self.lapse = lapse
+        rng = np.random.default_rng([self.seed, 5])
+        self.idx = {k: self._spread(len(self.particles), len(g), rng)
+                    for k, g in self.grids.items()}
+        self.ref_idx = {k: self._spread(self.n_reference, len(g), rng)
+                        for k, g in self.grids.items()}
+
+    @staticmethod
+    def _spread(n: int, k: int, rng: np.random.Generator) -> np.ndarray:
+        """Grid indices spread evenly over n particles, in random order (a uniform prior)."""
+        return rng.permutation(np.arange(n) % k).astype(np.int64)
+
+    def _values(self, idx: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {k: self.grids[k][i] for k, i in idx.items()}
+
+    # ------------------------------------------------------------------ the policy
+    def _log_policy(self, x: np.ndarray, beta: np.ndarray) -> np.ndarray:
+        """``log pi(a | s)`` ``[P, G, A]`` from ``x = w . Psi(s, a)`` ``[P, G, A]``."""
+        logits = beta[:, None, None] * x
+        logp = logits - np.logaddexp.reduce(logits, axis=2, keepdims=True)
+        if self.lapse > 0:
+            logp = np.logaddexp(math.log1p(-self.lapse) + logp,
+                                math.log(self.lapse / x.shape[2]))
+        return logp
+
+    def _follow(self, x: np.ndarray, beta: np.ndarray, optimal: np.ndarray,
+                test_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Chance of taking only optimal actions along each test's path (consecutive
+        groups; test t's groups start at ``test_starts[t]``): ``[P, T]`` under the policy
+        and ``[T]`` under uniformly random moves."""
+        logits = beta[:, None, None] * x
+        e = np.exp(logits - logits.max(axis=2, keepdims=True))
+        frac = (e * optimal[None]).sum(axis=2) / e.sum(axis=2)  # [P, G]
+        n_opt = optimal.sum(axis=1) / x.shape[2]
+        p = (1 - self.lapse) * frac + self.lapse * n_opt[None]
+        pol = np.exp(np.add.reduceat(np.log(np.maximum(p, 1e-300)), test_starts, axis=1))
+        rand = np.exp(np.add.reduceat(np.log(n_opt), test_starts))
+        return pol, rand
+
+    def _p_optimal(self, x: np.ndarray, v: dict[str, np.ndarray], optimal: np.ndarray,
+                   test_starts: np.ndarray, sat: np.ndarray) -> np.ndarray:
+        """``[P, T]``: engaged, the weights lie in the test's region (`sat`; else only by
+        a lapse) and every move is optimal; disengaged, random moves happen to be."""
+        pol, rand = self._follow(x, v["beta"], optimal, test_starts)
+        lam = v["disengaged"][:, None]
+        return (1 - lam) * pol * np.where(sat, 1.0, self.lapse) + lam * rand[None]
+
+    def p_optimal_paths(self, region_sat: np.ndarray, data: StepData,
+                        test_starts: np.ndarray) -> np.ndarray:
+        """``[P, T]`` chance that each particle answers each test optimally (`region_sat`
+        ``[P, T]``: its weights lie in the test's region; `data`: the optimal paths)."""
+        return self._p_optimal(data.x(self.particles), self._values(self.idx), data.optimal,
+                               test_starts, region_sat)
+
+    def predicted(self, region_sat: np.ndarray, data: StepData,
+                  test_starts: np.ndarray) -> np.ndarray:
+        """``[T]``: the belief's P(optimal answer) on each test (`p_optimal_paths`)."""
+        return self.weights @ self.p_optimal_paths(region_sat, data, test_starts)
+
+    def knowledge(self, region_sat: np.ndarray) -> np.ndarray:
+        """``[T]``: belief mass whose weights lie in each test's region (`region_sat`
+        ``[P, T]``): the share of success teaching can still change."""
+        return self.weights @ region_sat.astype(float)
+
+    # ------------------------------------------------------------------ observations
+    def observe_steps(self, data: StepData) -> None:
+        """Update after a test answer given as moves: the per-step policy's likelihood of
+        every action taken (`data.counts`), mixed with random moves (disengagement)."""
+        self._apply({"kind": "steps", **data.to_json()})
+
+    def observe_outcome(self, data: StepData, region: np.ndarray, correct: bool) -> None:
+        """Update after a test answer known only as optimal or not (`data`: the optimal
+        path's states with their optimal actions; `region`: the test's constraint rows)."""
+        rows = _check_rows(region, self.dim, "region")
+        self._apply({"kind": "outcome", **data.to_json(), "region": rows,
+                     "correct": bool(correct)})
+
+    def observe_answer(self, *args: Any, **kwargs: Any) -> None:  # noqa: D102
+        raise TypeError("NoisyBelief scores answers by their moves (observe_steps) or their "
+                        "outcome (observe_outcome)")
+
+    def observe(self, entry: dict[str, Any]) -> None:
+        """Replay one ``history`` entry (e.g. of another belief) as a new observation."""
+        kind = entry["kind"]
+        if kind == "demonstration":
+            self.observe_demonstration(entry["constraints"])
+        elif kind == "steps":
+            self.observe_steps(StepData.of(entry))
+        elif kind == "outcome":
+            self.observe_outcome(StepData(entry["rows"], None, entry["optimal"]),
+                                 entry["region"], entry["correct"])
+        else:
+            raise ValueError(f"entry: unknown observation kind {kind!r}")
+
+    # ------------------------------------------------------------------ likelihoods
+    def _steps_ll(self, per_move: np.ndarray, n_moves: np.ndarray, n_actions: int,
+                  lam: np.ndarray) -> np.ndarray:
+        """``[P, E]`` answers' log-likelihoods: `per_move` ``[P, E]`` the policy's summed
+        log pi, mixed with random moves (``-n log A``) by disengagement `lam` ``[P]``."""
+        rand = -n_moves * math.log(n_actions)
+        return np.logaddexp(np.log1p(-lam)[:, None] + per_move,
+                            np.log(lam)[:, None] + rand[None, :])
+
+    def _entry_ll(self, entry: dict[str, Any], points: np.ndarray,
+                  v: dict[str, np.ndarray]) -> np.ndarray:
+        if entry["kind"] == "demonstration":
+            return np.where(_sat(points, entry["constraints"]), 0.0, np.log1p(-v["uptake"]))
+        x = StepData.of(entry).x(points)
+        if entry["kind"] == "steps":
+            counts = entry["counts"]
+            pol = np.einsum("pga,ga->p", self._log_policy(x, v["beta"]), counts)
+            return self._steps_ll(pol[:, None], np.array([counts.sum()]), x.shape[2],
+                                  v["disengaged"])[:, 0]
+        return self._outcome_ll(entry, x, v, _sat(points, entry["region"]))
+
+    def _outcome_ll(self, entry: dict[str, Any], x: np.ndarray, v: dict[str, np.ndarray],
+                    ok: np.ndarray) -> np.ndarray:
+        p = self._p_optimal(x, v, entry["optimal"], np.array([0]), ok[:, None])[:, 0]
+        p = np.clip(p, 1e-300, 1 - 1e-12)
+        return np.log(p) if entry["correct"] else np.log1p(-p)
+
+    def _apply(self, entry: dict[str, Any]) -> None:
+        self.history.append(entry)
+        self._stack = None
+        lw = self.log_weights + self._entry_ll(entry, self.particles, self._values(self.idx))
+        self.log_weights = lw - np.logaddexp.reduce(lw)
+        self.reference_loglik = self.reference_loglik + self._entry_ll(
+            entry, self.reference, self._values(self.ref_idx))
+        self.resample_if_needed()
+
+    def _parts(self, points: np.ndarray) -> dict[str, Any]:
+        """What the posterior needs of `points` that does not depend on the grid values."""
+        demos = [e["constraints"] for e in self.history if e["kind"] == "demonstration"
+                 and len(e["constraints"])]
+        steps = [e for e in self.history if e["kind"] == "steps"]
+        out: dict[str, Any] = {"prior_ok": _sat(points, self.prior)}
+        out["missed"] = (sum((~_sat(points, c)).astype(float) for c in demos) if demos
+                         else np.zeros(len(points)))
+        if steps:
+            sizes = np.array([len(e["rows"]) for e in steps])
+            keep = sizes > 0
+            counts = np.concatenate([e["counts"] for e in steps]) if keep.any() \
+                else np.zeros((0, self.dim))
+            x = np.concatenate([StepData.of(e).x(points) for e in steps if len(e["rows"])],
+                               axis=1) if keep.any() else None
+            out["steps"] = {
+                "counts": counts, "x": x,
+                "starts": np.concatenate([[0], np.cumsum(sizes[keep])[:-1]]).astype(np.int64),
+                "keep": keep, "n_moves": np.array([e["counts"].sum() for e in steps])}
+        out["outcomes"] = [(e, StepData.of(e).x(points), _sat(points, e["region"]))
+                           for e in self.history if e["kind"] == "outcome"]
+        return out
+
+    def _posterior_from(self, parts: dict[str, Any], idx: dict[str, np.ndarray]
+                        ) -> np.ndarray:
+        v = self._values(idx)
+        out = parts["missed"] * np.log1p(-v["uptake"])
+        if "steps" in parts:
+            st = parts["steps"]
+            pol = np.zeros((len(out), len(st["keep"])))
+            if st["x"] is not None:
+                per_state = (self._log_policy(st["x"], v["beta"]) * st["counts"][None]).sum(2)
+                pol[:, st["keep"]] = np.add.reduceat(per_state, st["starts"], axis=1)
+            out = out + self._steps_ll(pol, st["n_moves"], self.batch_actions(st),
+                                       v["disengaged"]).sum(axis=1)
+        for e, x, ok in parts["outcomes"]:
+            out = out + self._outcome_ll(e, x, v, ok)
+        return np.where(parts["prior_ok"], out, -np.inf)
+
+    @staticmethod
+    def batch_actions(st: dict[str, Any]) -> int:
+        """The number of actions per state (the width of the step rows)."""
+        return int(st["counts"].shape[1]) if st["counts"].ndim == 2 and len(st["counts"]) \
+            else 1
+
+    def log_posterior(self, points: np.ndarray, idx: dict[str, np.ndarray] | None = None
+                      ) -> np.ndarray:
+        """Unnormalised log posterior at ``points [P, F]`` (unit vectors) with the given
+        grid indices (default: the particles' own, for P particles)."""
+        return self._posterior_from(self._parts(points), self.idx if idx is None else idx)
+
+    # ------------------------------------------------------------------ resample-move
+    def resample_if_needed(self) -> bool:
+        """`ParticleBelief.resample_if_needed`, carrying each particle's grid values along."""
+        n = len(self.particles)
+        if not self.resample or self.ess() >= n / 2:
+            return False
+        rng = np.random.default_rng([self.seed, 2, self.n_resamples])
+        positions = (rng.random() + np.arange(n)) / n
+        cdf = np.cumsum(self.weights)
+        pick = np.minimum(np.searchsorted(cdf, positions * cdf[-1], side="right"), n - 1)
+        self.n_resamples += 1
+        self.log_weights = np.full(n, -math.log(n))
+        self.idx = {k: i[pick] for k, i in self.idx.items()}
+        self.particles = self._move(self.particles[pick], rng)
+        return True
+
+    def _move(self, pts: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Metropolis-Hastings within Gibbs: a tangent-plane random walk for ``w`` (as in
+        `ParticleBelief`), then for each grid a uniform proposal among its other values;
+        all symmetric, each accepted by the posterior ratio."""
+        n, d = pts.shape
+        centre = pts.mean(axis=0)
+        spread = math.sqrt(max(1.0 - float(centre @ centre), 0.0) / (d - 1))
+        step = min(max(2.38 / math.sqrt(d - 1) * spread, 1e-6), 1.0)
+        idx = {k: i.copy() for k, i in self.idx.items()}
+        parts = self._parts(pts)
+        current = self._posterior_from(parts, idx)
+        rates = []
+        for _ in range(self.n_moves):
+            z = rng.standard_normal((n, d))
+            z -= np.sum(z * pts, axis=1, keepdims=True) * pts
+            prop = pts + step * z
+            prop /= np.linalg.norm(prop, axis=1, keepdims=True)
+            prop_parts = self._parts(prop)
+            lp = self._posterior_from(prop_parts, idx)
+            accept = np.log(rng.random(n)) < lp - current
+            pts = np.where(accept[:, None], prop, pts)
+            parts = _select_parts(parts, prop_parts, accept)
+            current = np.where(accept, lp, current)
+            rate = float(accept.mean())
+            rates.append(rate)
+            if rate < 0.15:
+                step = max(step * 0.5, 1e-6)
+            elif rate > 0.5:
+                step = min(step * 1.5, 1.0)
+            for name, grid in self.grids.items():
+                k = len(grid)
+                if k < 2:
+                    continue
+                trial = dict(idx)
+                trial[name] = (idx[name] + rng.integers(1, k, size=n)) % k  # another value
+                lp = self._posterior_from(parts, trial)
+                accept = np.log(rng.random(n)) < lp - current
+                idx[name] = np.where(accept, trial[name], idx[name])
+                current = np.where(accept, lp, current)
+        self.idx = idx
+        self.step_size = step
+        self.acceptance = float(np.mean(rates)) if rates else None
+        return pts
+
+    # ------------------------------------------------------------------ summaries, state
+    def mean_of(self, name: str) -> float:
+        """Posterior mean of one grid parameter (``beta``: geometric mean)."""
+        v = self.grids[name][self.idx[name]]
+        if name == "beta":
+            return float(10 ** (self.weights @ np.log10(v)))
+        return float(self.weights @ v)
+
+    def state_dict(self) -> dict[str, Any]:
+        out = super().state_dict()
+        out.update(grids={k: g.copy() for k, g in self.grids.items()}, lapse=self.lapse,
+                   idx={k: i.copy() for k, i in self.idx.items()},
+                   ref_idx={k: i.copy() for k, i in self.ref_idx.items()})
+        return out
+
+    def copy(self) -> NoisyBelief:
+        out = super().copy()
+        out.idx = {k: i.copy() for k, i in self.idx.items()}  # type: ignore[attr-defined]
+        return out  # type: ignore[return-value]
+
+
+def _sat(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Mask over points: every constraint row holds (all points when there are none)."""
+    if not len(rows):
+        return np.ones(len(points), dtype=bool)
+    return np.all(points @ np.asarray(rows).T >= -TOL, axis=1)
+
+
+def _select_parts(old: dict[str, Any], new: dict[str, Any], take: np.ndarray) -> dict[str, Any]:
+    """Per-point parts: `new`'s where `take`, else `old`'s (after an MH step on w)."""
+    out: dict[str, Any] = {"prior_ok": np.where(take, new["prior_ok"], old["prior_ok"]),
+                           "missed": np.where(take, new["missed"], old["missed"])}
+    if "steps" in old:
+        st = dict(old["steps"])
+        if st["x"] is not None:
+            st["x"] = np.where(take[:, None, None], new["steps"]["x"], old["steps"]["x"])
+        out["steps"] = st
+    out["outcomes"] = [(e, np.where(take[:, None, None], xn, xo), np.where(take, okn, oko))
+                       for (e, xo, oko), (_, xn, okn) in zip(old["outcomes"], new["outcomes"],
+                                                             strict=True)]
+    return out
