@@ -22,11 +22,14 @@ from cfteach.mdp.scoring import is_optimal
 from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .build import browser_game
+from .closed_loop_steps import MAX_WAIT_S, ClosedLoopSteps
 from .controls import PRACTICE_CONTROLS, controls
-from .games import ScoringError, public_game, replay
-from .layout import instance_layout
-from .live import LiveTeaching, path_states, responses_of
-from .models import ClientReport, ClosedLoopItem, Event, Session, TestResponse, aware, utcnow
+from .db import durable_barrier
+from .decisions import Decider
+from .games import ScoringError, replay
+from .identity import find_participant, participant_key, study_key
+from .live import LiveTeaching
+from .models import ClientReport, Event, Session, TestResponse, aware, utcnow
 from .steps import ALLOWED, build_steps, demo_required_ms
 from .texts import EDUCATION, GENDERS, LIKERT
 from .versions import load_version
@@ -52,10 +55,15 @@ class ApiError(Exception):
         self.status, self.code, self.message = status, code, message
 
 
-class StudyService:
+#: Sessions over: a returning participant gets the page for the status, never a new session.
+FINISHED = ("completed", "screened_out", "declined")
+
+
+class StudyService(ClosedLoopSteps):
     """All participant-facing operations; one instance per running server."""
 
-    def __init__(self, engine: Engine, study: dict, *, seed: int | None = None) -> None:
+    def __init__(self, engine: Engine, study: dict, *, seed: int | None = None,
+                 decision_workers: int = 0, event_wait_s: float = 0.1) -> None:
         self.engine = engine
         self.study = study
         self.Session = sessionmaker(engine, expire_on_commit=False)
@@ -70,6 +78,12 @@ class StudyService:
         # read from the database on first use (see versions.py).
         self._studies: dict[str, dict] = {study["version"]: study}
         self.live = LiveTeaching()
+        # closed-loop decisions: worker processes (0: one thread of this process)
+        self.decider = Decider(self.live, [study], decision_workers)
+        self.event_wait_s = event_wait_s
+
+    def close(self) -> None:
+        self.decider.close()
 
     # -- sessions -------------------------------------------------------------------------
 
@@ -91,14 +105,18 @@ class StudyService:
         pid = None if placeholder else pid
         study_id = None if req.study_id and _PLACEHOLDER.match(req.study_id) else req.study_id
         sess_id = None if req.session_id and _PLACEHOLDER.match(req.session_id) else req.session_id
-        pid_key = f"{study_id or ''}:{pid}" if pid and not preview else None
+        # one session per Prolific participant and study: keyed on the study's own identity
+        # (fixed at `study init`), never on the STUDY_ID the link carries
+        pid_key = participant_key(study_key(self.study), pid) if pid and not preview else None
         with self._lock, self.Session() as db, db.begin():
             if self._pg:
                 db.execute(text("SELECT pg_advisory_xact_lock(727274)"))
             if pid_key:
-                row = db.scalar(select(Session).where(Session.pid_key == pid_key))
+                row = find_participant(db, pid_key, pid)
                 if row is not None:
-                    if _proves(row, req.token, sess_id):
+                    # a finished session shows its status page (screened out, declined,
+                    # completed: nothing left to do or to steal in it), to anyone
+                    if row.status in FINISHED or _proves(row, req.token, sess_id):
                         return row, True
                     raise ApiError(409, "session_elsewhere", ELSEWHERE)
             elif req.token:
@@ -154,10 +172,23 @@ class StudyService:
 
     # -- reading the current page ---------------------------------------------------------
 
-    def state(self, token: str | None) -> dict:
-        with self.ReadSession() as db, db.begin():
-            row = self._session(db, token)
-            return self._view(db, row)
+    def state(self, token: str | None, wait: float = 0.0) -> dict:
+        """The page to show. Only what is durable is shown (`durable_barrier`). A
+        closed-loop page whose next item is not decided yet submits the decision (once)
+        and waits for it up to `wait` s (then answers ``preparing: true``)."""
+        wait = min(max(0.0, wait), MAX_WAIT_S)
+        for _ in range(3):
+            durable_barrier(self.engine)
+            with self.ReadSession() as db, db.begin():
+                row = self._session(db, token)
+                view = self._view(db, row)
+                job = None
+                if view["step"].get("preparing"):
+                    job = self._cl_job(db, row, self.steps(row)[row.step_index])
+            if job is None or not self._cl_ensure(job, wait):
+                return view
+            wait = 0.0  # recorded: read the page once more, with what was recorded
+        return view
 
     def _view(self, db: DBSession, row: Session) -> dict:
         steps = self.steps(row)
@@ -233,7 +264,7 @@ class StudyService:
         return counts
 
     def _check_demo(self, db: DBSession, row: Session, step: dict, ev: Event,
-                    p: schemas.DemoPlayStart | schemas.DemoPlayEnd, now: datetime) -> None:
+                    p: schemas.DemoPlayStart | schemas.DemoPlayEnd, now: datetime) -> dict:
         """Refuse unknown demonstrations; time a play's end against its start, server-side.
 
         A play counts as watched only if this end closes a start of the same demonstration
@@ -245,16 +276,17 @@ class StudyService:
             item = self._cl_pending(db, row, step)
             if item is None or p.demo_index != item.position or item.kind == "test":
                 raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not the "
-                               "demonstration this page shows")
-            pool = self.live.pool(study, step["domain"])
-            demos = {p.demo_index: {"actions": pool.ds.action_names(item.demo)}}
+                               "demonstration or feedback this page shows")
+            n = self._cl_play_actions(db, row, step, item)
+            demos = {p.demo_index: {"actions": [None] * n}}
         else:
             demos = study["curricula"][step["domain"]][row.condition]
         if p.demo_index >= len(demos) and step["kind"] != "closed_loop":
             raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not one of this "
                            f"page's {len(demos)} demonstrations")
         if not isinstance(p, schemas.DemoPlayEnd):
-            return
+            return {}
+        need = demo_required_ms(len(demos[p.demo_index]["actions"]), study["demo_step_ms"])
         start = db.scalar(select(Event).where(
             Event.session_pk == row.id, Event.step_index == row.step_index,
             Event.type.in_(("demo_play_start", "demo_play_end")))
@@ -262,30 +294,32 @@ class StudyService:
         if (start is None or start.type != "demo_play_start"
                 or start.payload["demo_index"] != p.demo_index):
             ev.server_ms, ev.verified = None, False
-            return
+            return _play(ev, need, "no_start")
         ev.server_ms = max(0, int((now - aware(start.server_at)).total_seconds() * 1000))
-        need = demo_required_ms(len(demos[p.demo_index]["actions"]), study["demo_step_ms"])
         ev.verified = bool(p.completed) and ev.server_ms >= need
+        why = None if ev.verified else "not_completed" if not p.completed else "too_short"
+        return _play(ev, need, why)
 
     # -- events ---------------------------------------------------------------------------
 
     def post_event(self, token: str | None, req: schemas.EventRequest) -> dict:
         """Store one event exactly once and apply its effect on the step machine."""
         try:
-            self._cl_prepare(token, req)
-        except (ApiError, ValueError, KeyError, TypeError, RuntimeError):
-            pass  # the transaction below refuses the event with the right answer
-        with self.Session() as db:
-            try:
-                with db.begin():
-                    row, result = self._apply(db, token, req)
-                    db.flush()
-                    view = self._view(db, row)
-            except IntegrityError as e:
-                raise ApiError(409, "duplicate_event",
-                               f"event {req.event_id} was already stored") from e
-            # Only now, after the commit, is the event acknowledged.
-            return {"ok": True, **result, "state": view}
+            with self.Session() as db, db.begin():
+                _row, result = self._apply(db, token, req)
+                db.flush()
+        except IntegrityError as e:
+            durable_barrier(self.engine)  # the stored copy is durable before we say so
+            raise ApiError(409, "duplicate_event",
+                           f"event {req.event_id} was already stored") from e
+        except ApiError as e:
+            if e.code == "duplicate_event":
+                durable_barrier(self.engine)
+            raise
+        # Only now, after the (durable) commit, is the event acknowledged. The page it
+        # leads to is read after it, outside the write lock; a closed-loop answer waits a
+        # moment for the next item (usually decided ahead) before answering "preparing".
+        return {"ok": True, **result, "state": self.state(token, wait=self.event_wait_s)}
 
     def _apply(self, db: DBSession, token: str | None,
                req: schemas.EventRequest) -> tuple[Session, dict]:
@@ -319,12 +353,12 @@ class StudyService:
                    step_index=row.step_index, step_kind=kind, domain=step.get("domain"),
                    type=req.type,
                    payload=payload.model_dump(), client_ms=req.client_ms, server_at=now)
+        result: dict[str, Any] = {}
         if req.type in ("demo_play_start", "demo_play_end"):
-            self._check_demo(db, row, step, ev, payload, now)
+            result = self._check_demo(db, row, step, ev, payload, now)
         db.add(ev)
         db.flush()
         row.last_active_at = now
-        result: dict[str, Any] = {}
         advance = False
         if req.type in ("continue", "consent", "likert"):
             advance = True
@@ -349,147 +383,19 @@ class StudyService:
             row.age, row.gender, row.education = payload.age, payload.gender, payload.education
             advance = True
         elif req.type == "item_done":
-            advance = self._cl_item_done(db, row, step, ev, payload, now)
-        while advance:
-            row.step_index += 1
-            row.step_entered_at = now
-            advance = False
-            if steps[row.step_index]["kind"] == "complete":
-                row.status = "completed"
-                row.completed_at = now
-            elif steps[row.step_index]["kind"] == "closed_loop":
-                # the first item is decided now; a teacher with nothing to teach skips ahead
-                advance = self._cl_decide(db, row, steps[row.step_index], now) is None
+            self._cl_item_done(db, row, step, ev, payload, now)
+        if advance:
+            self._advance(db, row, now)
         return row, result
 
-    # -- the closed_loop condition (cfteach.study.live) ----------------------------------
-
-    def _cl_stored(self, db: DBSession, row: Session, step_index: int) -> list[dict]:
-        return list(db.scalars(select(Event.payload).where(
-            Event.session_pk == row.id, Event.step_index == step_index,
-            Event.type == "item_done").order_by(Event.seq)))
-
-    def _cl_pending(self, db: DBSession, row: Session, step: dict) -> ClosedLoopItem | None:
-        """The item on screen: the first one without an answer."""
-        return db.scalar(select(ClosedLoopItem).where(
-            ClosedLoopItem.session_pk == row.id, ClosedLoopItem.domain == step["domain"],
-            ClosedLoopItem.done_at.is_(None)).order_by(ClosedLoopItem.position).limit(1))
-
-    def _cl_decide(self, db: DBSession, row: Session, step: dict,
-                   now: datetime) -> ClosedLoopItem | None:
-        """Decide the next item from the stored events and record it; None when done."""
-        study = self.study_of(row)
-        dom = step["domain"]
-        responses = responses_of(self._cl_stored(db, row, row.step_index))
-        # usually found ready (decided by `_cl_prepare` or in the background), as this
-        # runs inside the write transaction
-        item, summary = self.live.decide(study, row.id, row.seed, dom, responses, ahead=False)
-        if item is None:
-            return None
-        ds = self.live.pool(study, dom).ds
-        inst = ds.instance(item.demo)
-        rec = ClosedLoopItem(
-            session_pk=row.id, domain=dom, position=item.index, kind=item.kind,
-            purpose=item.purpose, demo=item.demo, about=item.about,
-            env_code="".join(str(int(b)) for b in inst.env_code), env_index=int(inst.index),
-            start_state=inst.state_to_json(ds.trajectory_states(item.demo)[0]),
-            shown_at=now, **summary)
-        db.add(rec)
-        return rec
-
-    def _cl_prepare(self, token: str | None, req: schemas.EventRequest) -> None:
-        """Before the write transaction: decide the item this event will lead to, so the
-        transaction (which holds SQLite's write lock) only finds it ready. Speculative: any
-        problem is left for the transaction to report, and a refused event's decision is
-        simply never used (teachers are found by the responses they have seen)."""
-        if req.type not in ("item_done", "continue"):
-            return
-        with self.ReadSession() as db, db.begin():
-            row = self._session(db, token)
-            if row.status != "in_progress" or req.step_index != row.step_index:
-                return
-            steps = self.steps(row)
-            step = steps[row.step_index]
-            if step["kind"] == "closed_loop" and req.type == "item_done":
-                pending = self._cl_pending(db, row, step)
-                p = req.payload
-                if pending is None or p.get("item") != pending.position or (
-                        pending.kind == "test") != (p.get("actions") is not None):
-                    return
-                payloads = [*self._cl_stored(db, row, row.step_index), p]
-            elif (req.type == "continue" and row.step_index + 1 < len(steps)
-                  and steps[row.step_index + 1]["kind"] == "closed_loop"):
-                step, payloads = steps[row.step_index + 1], []
-            else:
-                return
-            study, pk, seed = self.study_of(row), row.id, row.seed
-        self.live.decide(study, pk, seed, step["domain"], responses_of(payloads))
-
-    def _cl_item_done(self, db: DBSession, row: Session, step: dict, ev: Event,
-                      p: schemas.ItemDone, now: datetime) -> bool:
-        """Record the answer to the item on screen and decide the next; True when the
-        domain's teaching is over (the session moves on to the survey)."""
-        item = self._cl_pending(db, row, step)
-        if item is None or p.item != item.position:
-            raise ApiError(409, "wrong_item", f"item {p.item} is not the item on screen "
-                           f"({'none' if item is None else item.position})")
-        study = self.study_of(row)
-        if item.kind == "test":
-            if p.actions is None:
-                raise ApiError(422, "bad_payload", "item_done: a test needs its actions")
-            game = self.live.game(study, step["domain"], item.demo)
-            try:
-                score = replay(game, study["domain_info"][step["domain"]]["weights"],
-                               p.actions)
-            except ScoringError as e:
-                raise ApiError(422, "bad_moves", str(e)) from e
-            best = float(self.live.pool(study, step["domain"]).ds.reward(item.demo))
-            item.actions, item.reward, item.optimal_reward = " ".join(p.actions), \
-                score.reward, best
-            item.optimal = is_optimal(score.reward, best)
-        else:
-            if p.actions is not None:
-                raise ApiError(422, "bad_payload", f"item_done: a {item.kind} takes no actions")
-            if item.kind == "demonstration":
-                done = self._demo_completions(db, row, row.step_index, item.position + 1)
-                if done[item.position] < 1:
-                    raise ApiError(409, "demos_unwatched", "the demonstration must be played "
-                                   "and watched to the end at least once")
-        item.done_at = now
-        item.server_ms = max(0, int((now - aware(item.shown_at)).total_seconds() * 1000))
-        db.flush()  # the event is stored: the teacher now sees its response
-        return self._cl_decide(db, row, step, now) is None
-
-    def _cl_view(self, db: DBSession, row: Session, step: dict) -> dict:
-        """What the page shows for the item on screen (decided when the last answer came)."""
-        study = self.study_of(row)
-        dom = step["domain"]
-        item = self._cl_pending(db, row, step)
-        if item is None:  # cannot happen: the step is left when teaching ends
-            raise ApiError(409, "wrong_step", "no closed-loop item is pending")
-        pool = self.live.pool(study, dom)
-        ds = pool.ds
-        inst = ds.instance(item.demo)
-        layout = instance_layout(dom, inst)
-        optimal = [inst.state_to_json(x) for x in ds.trajectory_states(item.demo)]
-        out: dict[str, Any] = {"item": {"position": item.position, "kind": item.kind,
-                                        "purpose": item.purpose, "layout": layout}}
-        if item.kind == "demonstration":
-            out["item"].update(states=optimal, n_actions=len(optimal) - 1,
-                               completed=self._demo_completions(
-                                   db, row, row.step_index, item.position + 1)[item.position])
-        elif item.kind == "test":
-            out["item"].update(game=public_game(self.live.game(study, dom, item.demo)),
-                               elapsed_ms=max(0, int((utcnow() - aware(item.shown_at))
-                                                     .total_seconds() * 1000)))
-        else:
-            failed = db.scalar(select(ClosedLoopItem).where(
-                ClosedLoopItem.session_pk == row.id, ClosedLoopItem.domain == dom,
-                ClosedLoopItem.position == item.about))
-            game = self.live.game(study, dom, item.demo)
-            answer = (failed.actions or "").split()
-            out["item"].update(optimal=optimal, answer=path_states(game, answer))
-        return out
+    def _advance(self, db: DBSession, row: Session, now: datetime) -> None:
+        """Move to the next page (a closed-loop page's first item is decided after the
+        commit, outside the transaction: see closed_loop_steps)."""
+        row.step_index += 1
+        row.step_entered_at = now
+        if self.steps(row)[row.step_index]["kind"] == "complete":
+            row.status = "completed"
+            row.completed_at = now
 
     def _practice(self, row: Session, p: schemas.PracticeAttempt) -> dict:
         prac = self.study_of(row)["practice"]
@@ -567,6 +473,15 @@ class StudyService:
                  for (c, o, t) in all_cells(self.study)]
         return {"study_version": self.study["version"], "status": status,
                 "previews": previews, "older_versions_in_progress": older, "cells": cells}
+
+
+def _play(ev: Event, need: int, why: str | None) -> dict:
+    """How the server judged a play (in the demo_play_end acknowledgement): the page can
+    tell a play its own network fault shortened (`no_start`, `too_short` after a refused or
+    late start) from a skipped one, and replay it instead of blaming the participant. An
+    unverified play never takes away an earlier verified one."""
+    return {"play": {"verified": bool(ev.verified), "server_ms": ev.server_ms,
+                     "required_ms": need, "reason": why}}
 
 
 def _proves(row: Session, token: str | None, session_id: str | None) -> bool:
