@@ -24,6 +24,7 @@ class AnalysisConfig:
     exclusions: ExclusionConfig = field(default_factory=ExclusionConfig)
     padjust: str = "holm"  # correction of the within-subjects post hocs and pairwise MWUs
     authors_tukey: bool = True  # also report the authors' between-groups Tukey for H1
+    keep_sessions: tuple[str, ...] = ()  # the session to keep of a participant with several
     figures: bool = True
 
     def __post_init__(self) -> None:
@@ -149,7 +150,7 @@ def analyze(
         bar.set_postfix_str("load")
         from cfteach.analysis import closed_loop  # closed_loop participants: their own section
         with closed_loop.paper_only(export_dir) as paper_dir:
-            export = load_export(paper_dir)
+            export = load_export(paper_dir, keep_sessions=list(cfg.keep_sessions))
         bar.update()
         bar.set_postfix_str("statistics")
         results, frames = compute_results(export, cfg, str(export_dir), note)
