@@ -15,6 +15,7 @@ review measured page p99 of 0.5-1.8 s with 100 closed-loop participants).
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import threading
 from collections.abc import Callable
@@ -26,6 +27,8 @@ from .live import LiveTeaching
 
 #: Futures kept for lookup (the in-flight and recently finished decisions).
 MAX_FUTURES = 4096
+#: Seconds a worker may take to start and build its lesson pools.
+WARM_TIMEOUT_S = 600.0
 
 _WORKER_LIVE: LiveTeaching | None = None
 
@@ -44,6 +47,10 @@ def _worker_init(studies: list[dict]) -> None:
     _WORKER_LIVE = LiveTeaching(workers=1)
     for s in studies:
         _WORKER_LIVE.warm(s)
+
+
+def _ready() -> bool:
+    return _WORKER_LIVE is not None
 
 
 def decide_job(study: dict, session_pk: int, seed: int, domain: str,
@@ -75,6 +82,12 @@ class Decider:
         self._lock = threading.Lock()
         self._futures: dict[tuple, Future] = {}
         self._executors: list[Executor] = [self._executor() for _ in range(max(1, workers))]
+        # follow-up submissions leave the thread that finished a future (for a process
+        # pool, its manager thread) at once
+        self._dispatch = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cl-dispatch")
+        if workers > 0:  # start the workers and build their pools now, not on first use
+            for f in [ex.submit(_ready) for ex in self._executors]:
+                f.result(timeout=WARM_TIMEOUT_S)
 
     def _executor(self) -> Executor:
         if self.workers <= 0:
@@ -84,6 +97,7 @@ class Decider:
                                    initializer=_worker_init, initargs=(self._studies,))
 
     def close(self) -> None:
+        self._dispatch.shutdown(wait=False, cancel_futures=True)
         for ex in self._executors:
             ex.shutdown(wait=False, cancel_futures=True)
 
@@ -102,18 +116,20 @@ class Decider:
                 for k in [k for k, f in self._futures.items() if f.done()][: MAX_FUTURES // 2]:
                     del self._futures[k]
 
-        def ahead(f: Future) -> None:
+        def ahead() -> None:
             # after a demonstration or feedback the response is known ({}): decide the item
             # after it now, in the same worker, so answering it finds the decision ready
+            self.submit(study, session_pk, seed, domain, [*responses, {}])
+
+        def done(f: Future) -> None:
             if f.cancelled() or f.exception() is not None:
                 return
             out = f.result()
             if out is not None and out["kind"] != "test":
-                with self._lock:
-                    self._run(session_pk, self._job(study, session_pk, seed, domain,
-                                                    [*responses, {}]))
+                with contextlib.suppress(RuntimeError):  # shutting down
+                    self._dispatch.submit(ahead)
 
-        fut.add_done_callback(ahead)
+        fut.add_done_callback(done)
         return fut
 
     def _job(self, study: dict, session_pk: int, seed: int, domain: str,
