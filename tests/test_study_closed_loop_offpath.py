@@ -19,7 +19,7 @@ from cfteach.study import create_app
 from cfteach.study.build import init_study, preview_sources
 from cfteach.study.games import shortest_path
 from cfteach.study.ratelimit import RateLimiter
-from test_study_closed_loop import TEACHER, Api, _closed_loop_client
+from test_study_closed_loop import TEACHER, Api
 
 
 @pytest.fixture(scope="module")

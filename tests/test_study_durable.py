@@ -107,13 +107,14 @@ def test_non_finite_numbers_are_refused_everywhere(toy_study: Path, tmp_path: Pa
     hdr = {"content-type": "application/json"}
     with TestClient(app, raise_server_exceptions=False) as c:
         tok = c.post("/api/session", json={"prolific_pid": "NANPID01"}).json()["token"]
-        report = ('{"report_id": "%s", "path": "/api/event", "http_status": 422, '
-                  '"error": "x", "detail": "y", "client_ms": %s}' % (uuid.uuid4().hex, raw))
-        event = ('{"event_id": "%s", "step_index": 0, "type": "page_load", "payload": {}, '
-                 '"client_ms": %s}' % (uuid.uuid4().hex, raw))
-        nested = ('{"event_id": "%s", "step_index": 0, "type": "page_load", '
-                  '"payload": {"x": [1, %s]}}' % (uuid.uuid4().hex, raw))
-        session = '{"prolific_pid": "NANPID02", "mode": %s}' % raw
+        rid, eid = uuid.uuid4().hex, uuid.uuid4().hex
+        report = ('{"report_id": "' + rid + '", "path": "/api/event", "http_status": 422, '
+                  '"error": "x", "detail": "y", "client_ms": ' + raw + '}')
+        event = ('{"event_id": "' + eid + '", "step_index": 0, "type": "page_load", '
+                 '"payload": {}, "client_ms": ' + raw + '}')
+        nested = ('{"event_id": "' + eid + '", "step_index": 0, "type": "page_load", '
+                  '"payload": {"x": [1, ' + raw + ']}}')
+        session = '{"prolific_pid": "NANPID02", "mode": ' + raw + '}'
         for path, body, h in (("/api/client-report", report, hdr),
                               ("/api/event", event, {**hdr, "X-Session-Token": tok}),
                               ("/api/event", nested, {**hdr, "X-Session-Token": tok}),
