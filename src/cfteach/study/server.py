@@ -158,22 +158,23 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
                              "participant_id": row.participant_id})
 
     @app.get("/api/state", response_model=State, responses=errors(401, 410, 422, 429, 503))
-    def state(request: Request, x_session_token: str | None = Header(default=None),
-              wait: float = Query(default=0.0, ge=0.0, le=5.0)) -> JSONResponse:
-        """The page; `wait` (s) waits that long for a closed-loop item being prepared."""
+    async def state(request: Request, x_session_token: str | None = Header(default=None),
+                    wait: float = Query(default=0.0, ge=0.0, le=5.0)) -> JSONResponse:
+        """The page; `wait` (s) waits that long for a closed-loop item being prepared
+        (holding no thread)."""
         tok = _session_token(request, x_session_token)
         if not state_limit.allow(tok):
             raise ApiError(429, "rate_limited", "too many page reads; slow down")
-        return JSONResponse(service.state(tok, wait=wait))
+        return JSONResponse(await service.state_async(tok, wait=wait))
 
     @app.post("/api/event", response_model=EventAck,
               responses=errors(400, 401, 408, 409, 410, 413, 415, 422, 429, 503))
-    def event(req: schemas.EventBody, request: Request,
-              x_session_token: str | None = Header(default=None)) -> JSONResponse:
+    async def event(req: schemas.EventBody, request: Request,
+                    x_session_token: str | None = Header(default=None)) -> JSONResponse:
         tok = _session_token(request, x_session_token)
         if not event_limit.allow(tok, cost=event_cost(req.type)):
             raise ApiError(429, "rate_limited", "too many events; slow down")
-        return JSONResponse(service.post_event(tok, schemas.as_request(req)))
+        return JSONResponse(await service.post_event_async(tok, schemas.as_request(req)))
 
     @app.post("/api/client-report", response_model=Ack,
               responses=errors(400, 413, 415, 422, 429))

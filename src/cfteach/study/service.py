@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import hmac
 import random
 import re
@@ -15,6 +16,7 @@ from sqlalchemy import Engine, func, select, text
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session as DBSession
 from sqlalchemy.orm import sessionmaker
+from starlette.concurrency import run_in_threadpool
 
 from cfteach.domains.spec import BUILTIN_ACTIONS
 from cfteach.mdp.scoring import is_optimal
@@ -178,17 +180,44 @@ class StudyService(ClosedLoopSteps):
         and waits for it up to `wait` s (then answers ``preparing: true``)."""
         wait = min(max(0.0, wait), MAX_WAIT_S)
         for _ in range(3):
-            durable_barrier(self.engine)
-            with self.ReadSession() as db, db.begin():
-                row = self._session(db, token)
-                view = self._view(db, row)
-                job = None
-                if view["step"].get("preparing"):
-                    job = self._cl_job(db, row, self.steps(row)[row.step_index])
+            view, job = self.read_state(token)
             if job is None or not self._cl_ensure(job, wait):
                 return view
             wait = 0.0  # recorded: read the page once more, with what was recorded
         return view
+
+    async def state_async(self, token: str | None, wait: float = 0.0) -> dict:
+        """`state` for the event loop: the reads and writes run in the thread pool, and
+        the wait for a decision holds no thread at all."""
+        wait = min(max(0.0, wait), MAX_WAIT_S)
+        for _ in range(3):
+            view, job = await run_in_threadpool(self.read_state, token)
+            if job is None:
+                return view
+            fut = self.decider.submit(self._studies[job["version"]], job["pk"],
+                                      job["seed"], job["domain"], job["responses"])
+            try:
+                result = await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(fut)),
+                                                wait)
+            except Exception:  # noqa: BLE001 - not ready in time, or failed: retried later
+                if fut.done():
+                    self.decider.heal(fut)
+                return view
+            if not await run_in_threadpool(self._cl_record, job, result):
+                return view
+            wait = 0.0
+        return view
+
+    def read_state(self, token: str | None) -> tuple[dict, dict | None]:
+        """The page as stored (and durable), and the decision it waits for, if any."""
+        durable_barrier(self.engine)
+        with self.ReadSession() as db, db.begin():
+            row = self._session(db, token)
+            view = self._view(db, row)
+            job = None
+            if view["step"].get("preparing"):
+                job = self._cl_job(db, row, self.steps(row)[row.step_index])
+        return view, job
 
     def _view(self, db: DBSession, row: Session) -> dict:
         steps = self.steps(row)
@@ -304,6 +333,16 @@ class StudyService(ClosedLoopSteps):
 
     def post_event(self, token: str | None, req: schemas.EventRequest) -> dict:
         """Store one event exactly once and apply its effect on the step machine."""
+        result = self.store_event(token, req)
+        return {"ok": True, **result, "state": self.state(token, wait=self.event_wait_s)}
+
+    async def post_event_async(self, token: str | None, req: schemas.EventRequest) -> dict:
+        result = await run_in_threadpool(self.store_event, token, req)
+        state = await self.state_async(token, wait=self.event_wait_s)
+        return {"ok": True, **result, "state": state}
+
+    def store_event(self, token: str | None, req: schemas.EventRequest) -> dict:
+        """Store the event (durably) and return what its acknowledgement adds."""
         try:
             with self.Session() as db, db.begin():
                 _row, result = self._apply(db, token, req)
@@ -319,7 +358,7 @@ class StudyService(ClosedLoopSteps):
         # Only now, after the (durable) commit, is the event acknowledged. The page it
         # leads to is read after it, outside the write lock; a closed-loop answer waits a
         # moment for the next item (usually decided ahead) before answering "preparing".
-        return {"ok": True, **result, "state": self.state(token, wait=self.event_wait_s)}
+        return result
 
     def _apply(self, db: DBSession, token: str | None,
                req: schemas.EventRequest) -> tuple[Session, dict]:
