@@ -20,6 +20,7 @@ from cfteach.mdp.scoring import is_optimal
 
 from . import schemas
 from .decisions import result_or_none
+from .errors import ApiError
 from .games import ScoringError, public_game, replay
 from .layout import instance_layout
 from .live import path_states, responses_of
@@ -71,8 +72,6 @@ class ClosedLoopSteps:
         """Check the answer to the item on screen in full (no teacher work at all: a refused
         answer costs a lookup and, for a test, one replay of its moves) and record it. The
         next item is decided after the commit (`_cl_ensure`)."""
-        from .service import ApiError
-
         item = self._cl_pending(db, row, step)
         if item is None or p.item != item.position:
             shown = "none: the next is being prepared" if item is None else item.position
@@ -130,8 +129,6 @@ class ClosedLoopSteps:
         """Store the decided item (or, when teaching is over, move the session on) if the
         session is still where the decision was asked; exactly once across processes (the
         session row lock, and the unique item position)."""
-        from .service import ApiError
-
         with self.Session() as db:
             try:
                 with db.begin():

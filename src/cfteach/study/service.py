@@ -18,22 +18,20 @@ from sqlalchemy.orm import Session as DBSession
 from sqlalchemy.orm import sessionmaker
 from starlette.concurrency import run_in_threadpool
 
-from cfteach.domains.spec import BUILTIN_ACTIONS
 from cfteach.mdp.scoring import is_optimal
 
 from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell, completed_counts
-from .build import browser_game
 from .closed_loop_steps import MAX_WAIT_S, ClosedLoopSteps
-from .controls import PRACTICE_CONTROLS, controls
 from .db import durable_barrier
 from .decisions import Decider
+from .errors import ApiError
 from .games import ScoringError, replay
 from .identity import find_participant, participant_key, study_key
 from .live import LiveTeaching
 from .models import ClientReport, Event, Session, TestResponse, aware, utcnow
-from .steps import ALLOWED, build_steps, demo_required_ms
-from .texts import EDUCATION, GENDERS, LIKERT
+from .pages import PageViews
+from .steps import ALLOWED, build_steps
 from .versions import load_version
 
 _PLACEHOLDER = re.compile(r"^\{\{?%.*%\}?\}$|^$")
@@ -49,19 +47,13 @@ def well_formed_token(token: str | None) -> bool:
     return token is not None and TOKEN_RE.fullmatch(token) is not None
 
 
-class ApiError(Exception):
-    """A request the server refuses; `status` is the HTTP code, `code` a stable name."""
-
-    def __init__(self, status: int, code: str, message: str) -> None:
-        super().__init__(message)
-        self.status, self.code, self.message = status, code, message
 
 
 #: Sessions over: a returning participant gets the page for the status, never a new session.
 FINISHED = ("completed", "screened_out", "declined")
 
 
-class StudyService(ClosedLoopSteps):
+class StudyService(PageViews, ClosedLoopSteps):
     """All participant-facing operations; one instance per running server."""
 
     def __init__(self, engine: Engine, study: dict, *, seed: int | None = None,
@@ -218,116 +210,6 @@ class StudyService(ClosedLoopSteps):
             if view["step"].get("preparing"):
                 job = self._cl_job(db, row, self.steps(row)[row.step_index])
         return view, job
-
-    def _view(self, db: DBSession, row: Session) -> dict:
-        steps = self.steps(row)
-        s = self.study_of(row)
-        comp = s["completion"]
-        base = {"status": row.status, "step_index": row.step_index, "n_steps": len(steps),
-                "participant_id": row.participant_id, "is_preview": row.is_preview}
-        if row.status in ("screened_out", "declined"):
-            return {**base, "step": {"kind": row.status, "code": _code(comp, row.status),
-                                     "redirect": _redirect(comp, row.status, row)}}
-        step = dict(steps[row.step_index])
-        kind = step["kind"]
-        if kind == "consent" and s.get("consent_html"):
-            step["html"] = s["consent_html"]
-        if kind in ("free_play", "practice"):
-            p = s["practice"]
-            step.update(layout=p["layout"], game=p["game"],  # not secret: energy shown
-                        weights=p["weights"], start_energy=p["start_energy"],
-                        target_energy=p["target_energy"], attempts_used=row.practice_attempts,
-                        attempts_allowed=s["practice_attempts"], controls=PRACTICE_CONTROLS)
-        elif kind == "domain_intro":
-            step["info"] = _public_info(s["domain_info"][step["domain"]])
-            # A few configurations of this game: the demonstrations' layouts, unplayed.
-            seen, examples = set(), []
-            if row.condition == "closed_loop":
-                examples = s["closed_loop"][step["domain"]]["examples"]
-            for d in s["curricula"][step["domain"]].get(row.condition, []):
-                key = repr(d["layout"])
-                if key not in seen and len(examples) < 3:
-                    seen.add(key)
-                    examples.append({"layout": d["layout"], "state": d["states"][0]})
-            step["examples"] = examples
-        elif kind == "demos":
-            demos = s["curricula"][step["domain"]][row.condition]
-            step.update(info=_public_info(s["domain_info"][step["domain"]]), demos=demos,
-                        step_ms=s["demo_step_ms"],
-                        completed=self._demo_completions(db, row, row.step_index, len(demos)))
-        elif kind == "closed_loop":
-            step.update(info=_public_info(s["domain_info"][step["domain"]]),
-                        step_ms=s["demo_step_ms"], **self._cl_view(db, row, step))
-        elif kind == "survey":
-            step["items"] = {k: LIKERT[k] for k in ("informativeness", "mental_effort")}
-        elif kind == "test":
-            t = s["tests"][step["domain"]][row.test_set][step.pop("test_index")]
-            step.update(browser_game(t), info=_public_info(s["domain_info"][step["domain"]]),
-                        confidence=LIKERT["confidence"],
-                        n_trials=len(s["tests"][step["domain"]][row.test_set]),
-                        # so time_ms counts from the first showing, even across reloads
-                        elapsed_ms=max(0, int((utcnow() - aware(row.step_entered_at))
-                                              .total_seconds() * 1000)))
-        elif kind == "feedback":
-            n = db.scalar(select(func.count()).select_from(TestResponse).where(
-                TestResponse.session_pk == row.id, TestResponse.domain == step["domain"],
-                TestResponse.optimal.is_(True)))
-            total = len(s["tests"][step["domain"]][row.test_set])
-            step.update(correct=int(n or 0), total=total)
-        elif kind == "demographics":
-            step.update(genders=GENDERS, education=EDUCATION)
-        elif kind == "complete":
-            step.update(code=comp["completed"],
-                        redirect=None if row.is_preview else _redirect(comp, "completed", row))
-        return {**base, "step": step}
-
-    def _demo_completions(self, db: DBSession, row: Session, step_index: int,
-                          n: int) -> list[int]:
-        """Plays of each demonstration the server saw run start to end (`verified`)."""
-        counts = [0] * n
-        for payload in db.scalars(select(Event.payload).where(
-                Event.session_pk == row.id, Event.step_index == step_index,
-                Event.type == "demo_play_end", Event.verified.is_(True))):
-            if 0 <= payload["demo_index"] < n:
-                counts[payload["demo_index"]] += 1
-        return counts
-
-    def _check_demo(self, db: DBSession, row: Session, step: dict, ev: Event,
-                    p: schemas.DemoPlayStart | schemas.DemoPlayEnd, now: datetime) -> dict:
-        """Refuse unknown demonstrations; time a play's end against its start, server-side.
-
-        A play counts as watched only if this end closes a start of the same demonstration
-        (the last play event of the step) and lasted, on the server's clock, at least the
-        replay's length minus a small tolerance (`steps.demo_required_ms`).
-        """
-        study = self.study_of(row)
-        if step["kind"] == "closed_loop":
-            item = self._cl_pending(db, row, step)
-            if item is None or p.demo_index != item.position or item.kind == "test":
-                raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not the "
-                               "demonstration or feedback this page shows")
-            n = self._cl_play_actions(db, row, step, item)
-            demos = {p.demo_index: {"actions": [None] * n}}
-        else:
-            demos = study["curricula"][step["domain"]][row.condition]
-        if p.demo_index >= len(demos) and step["kind"] != "closed_loop":
-            raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not one of this "
-                           f"page's {len(demos)} demonstrations")
-        if not isinstance(p, schemas.DemoPlayEnd):
-            return {}
-        need = demo_required_ms(len(demos[p.demo_index]["actions"]), study["demo_step_ms"])
-        start = db.scalar(select(Event).where(
-            Event.session_pk == row.id, Event.step_index == row.step_index,
-            Event.type.in_(("demo_play_start", "demo_play_end")))
-            .order_by(Event.seq.desc()).limit(1))
-        if (start is None or start.type != "demo_play_start"
-                or start.payload["demo_index"] != p.demo_index):
-            ev.server_ms, ev.verified = None, False
-            return _play(ev, need, "no_start")
-        ev.server_ms = max(0, int((now - aware(start.server_at)).total_seconds() * 1000))
-        ev.verified = bool(p.completed) and ev.server_ms >= need
-        why = None if ev.verified else "not_completed" if not p.completed else "too_short"
-        return _play(ev, need, why)
 
     # -- events ---------------------------------------------------------------------------
 
@@ -514,44 +396,12 @@ class StudyService(ClosedLoopSteps):
                 "previews": previews, "older_versions_in_progress": older, "cells": cells}
 
 
-def _play(ev: Event, need: int, why: str | None) -> dict:
-    """How the server judged a play (in the demo_play_end acknowledgement): the page can
-    tell a play its own network fault shortened (`no_start`, `too_short` after a refused or
-    late start) from a skipped one, and replay it instead of blaming the participant. An
-    unverified play never takes away an earlier verified one."""
-    return {"play": {"verified": bool(ev.verified), "server_ms": ev.server_ms,
-                     "required_ms": need, "reason": why}}
-
-
 def _proves(row: Session, token: str | None, session_id: str | None) -> bool:
     """Whether the request shows it comes from whoever started `row` (constant-time)."""
     if token and hmac.compare_digest(token.encode(), row.token.encode()):
         return True
     return bool(session_id and row.session_id
                 and hmac.compare_digest(session_id.encode(), row.session_id.encode()))
-
-
-def _public_info(info: dict) -> dict:
-    out = {k: info[k] for k in ("title", "task", "actions", "note", "keys", "effects_word")}
-    # Study files written before per-domain controls play the built-in actions' keys.
-    out["controls"] = info.get("controls") or controls(BUILTIN_ACTIONS.values(), info["keys"])
-    return out
-
-
-#: The no-consent code of study files written before `--no-consent-code` existed.
-DEFAULT_DECLINED_CODE = "NOCONSENT"
-
-
-def _code(comp: dict, which: str) -> str:
-    if which == "declined":
-        return comp.get("declined", DEFAULT_DECLINED_CODE)
-    return comp[which]
-
-
-def _redirect(comp: dict, which: str, row: Session) -> str | None:
-    if not comp.get("url") or row.is_preview:
-        return None
-    return f"{comp['url']}{_code(comp, which)}"
 
 
 def _first_error(e: ValidationError) -> str:
