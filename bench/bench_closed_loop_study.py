@@ -130,6 +130,9 @@ def main() -> int:
     ap.add_argument("--decision-workers", type=int, default=2, help="per server")
     ap.add_argument("--attackers", type=int, default=0, help="closed-loop sessions sending "
                     "refused answers and page reads at their rate limits")
+    ap.add_argument("--refusal-cost", type=int, default=0, metavar="N", help="instead: send "
+                    "N refused closed-loop answers of each kind from one session and print "
+                    "the server's CPU per refusal")
     ap.add_argument("--timeout", type=float, default=900.0, help="give up after (s)")
     args = ap.parse_args()
     if not 1 <= args.participants <= MAX_PARTICIPANTS:
@@ -146,6 +149,8 @@ def main() -> int:
         engine = make_engine(db)
         drop_schema(engine)
         engine.dispose()
+    if args.refusal_cost:
+        return _refusal_cost(study, db, args.refusal_cost)
     with contextlib.ExitStack() as stack:
         servers = [stack.enter_context(serving_process(
             study, "--db", db, "--sessions-per-minute", "0", "--researcher-token", "bench",
@@ -182,6 +187,39 @@ def _tree_cpu(pids: list[int]) -> float:
         children = kids.read_text().split() if kids.exists() else []
         total += _cpu(pid) + sum(_cpu(int(c)) for c in children)
     return total
+
+
+def _refusal_cost(study: Path, db: str, n: int) -> int:
+    """Server CPU (server process and its decision workers) per refused request."""
+    with serving_process(study, "--db", db, "--events-per-minute", "0",
+                         "--states-per-minute", "0", "--decision-workers", "1",
+                         timeout=600) as (base, proc), \
+            httpx.Client(base_url=base, timeout=60) as c:
+        for j in range(20):
+            tok = c.post("/api/session", json={"prolific_pid": f"COST{j:02d}xx"}).json()["token"]
+            run_participant(c, None, token=tok, stop_after=6)
+            h = {"X-Session-Token": tok}
+            st = c.get("/api/state", headers=h, params={"wait": 5}).json()
+            if st["step"]["kind"] == "closed_loop":
+                break
+        step = st["step_index"]
+        time.sleep(3)  # the decision after the first item, made ahead, is over
+        kinds = {"wrong item (409 wrong_item)": ("item_done", {"item": 99}),
+                 "unwatched demonstration (409 demos_unwatched)": ("item_done", {"item": 0}),
+                 "actions on a demonstration (422 bad_payload)": (
+                     "item_done", {"item": 0, "actions": ["up"] * 40}),
+                 "wrong step, no closed-loop work (409 wrong_step)": ("continue", {})}
+        print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+        for label, (type_, payload) in kinds.items():
+            cpu0 = _tree_cpu([proc.pid])
+            for _ in range(n):
+                r = c.post("/api/event", headers=h, json={
+                    "event_id": uuid.uuid4().hex, "type": type_, "payload": payload,
+                    "step_index": step + (5 if type_ == "continue" else 0)})
+                assert r.status_code in (409, 422), r.text
+            cpu = (_tree_cpu([proc.pid]) - cpu0) / n * 1000
+            print(f"{label}: server CPU {cpu:.2f} ms per refusal (n={n})")
+    return 0
 
 
 def _attackers(bases: list[str], args: argparse.Namespace,
