@@ -76,7 +76,9 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
                          f"this database does not hold ({which}); serve that file until they "
                          "finish, or pass --new-version to start anyway (they cannot finish)")
     store_version(engine, study)
-    service = StudyService(engine, study, seed=seed, decision_workers=decision_workers)
+    # worker processes only where there is a teacher to run
+    workers = decision_workers if study.get("closed_loop") else 0
+    service = StudyService(engine, study, seed=seed, decision_workers=workers)
     service.live.warm(study)  # closed-loop lesson pools: derived from the file, built now
     token = researcher_token or secrets.token_urlsafe(16)
     session_limit = RateLimiter(sessions_per_minute)
