@@ -161,7 +161,14 @@ def main() -> int:
         cpu0, own0, load0 = _tree_cpu(pids), _own_cpu(), os.getloadavg()[0]
         stop = threading.Event()
         attackers = _attackers(bases, args, stop)
-        sent, times, wall = _run(bases, args)
+        try:
+            sent, times, wall = _run(bases, args)
+        except Exception:
+            for _, p in servers:
+                if p.poll() is not None:  # a server died: say why
+                    print(f"server {p.pid} exited with {p.returncode}: "
+                          f"{p.stderr.read()[-3000:]}", file=sys.stderr)
+            raise
         stop.set()
         for t in attackers:
             t.join(30)
