@@ -285,7 +285,9 @@ def _run(bases: list[str], args: argparse.Namespace) -> tuple[dict[str, int], di
 
     def one(i: int) -> tuple[str, int]:
         time.sleep(offsets[i])
-        limits = httpx.Limits(max_connections=2)
+        # idle connections closed by us before uvicorn's 5 s keep-alive timeout closes them
+        # (else a request sent as the server closes one is reset)
+        limits = httpx.Limits(max_connections=2, keepalive_expiry=2.0)
         with contextlib.ExitStack() as stack:
             cs = [stack.enter_context(httpx.Client(base_url=b, timeout=60, limits=limits))
                   for b in bases]
