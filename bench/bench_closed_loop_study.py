@@ -1,27 +1,38 @@
-"""Load test of the live closed_loop condition: N concurrent closed-loop participants at a
-person's pace (one event every --pace seconds each), over loopback.
+"""Load test of the live closed_loop condition: N concurrent participants at a person's
+pace (one event every --pace seconds each), over loopback; by default half closed-loop and
+half open-loop (`proposed`).
 
-Starts `cfteach serve` in a subprocess on 127.0.0.1 with a closed-loop-only skateboard
-study (placeholder post-tests from `--preview`; the teacher with its default 1,000
-particles), runs every participant at once from consent to completion, each waiting
-`--pace` s between its events (starts spread over the first interval), and times every
-request. Prints p50/p99 of the page (GET /api/state), of every event, and of the closed-loop
-decisions (the `item_done` answers, whose response carries the next item), then checks in
-the database that every acknowledged event was stored exactly once.
+Starts `cfteach serve` (--servers of them, on one database) in subprocesses on 127.0.0.1
+with a skateboard study (placeholder post-tests from `--preview`; the teacher with its
+default 1,000 particles), runs every participant at once from consent to completion, each
+waiting `--pace` s between its events (starts spread over the first interval), and times
+every request. With several servers each request goes to the next server in turn (a proxy
+without sticky sessions: the hardest case for consistency). Prints p50/p99 of the page
+(GET /api/state), of every event (POST), and of the closed-loop decisions (from an
+`item_done` POST until the page has the next item, through the "preparing" answers and
+`GET /api/state?wait=` calls that wait for it), then checks in the database that every
+acknowledged event was stored exactly once. `--attackers K` adds K closed-loop sessions that
+send refused answers and page reads at their rate limits for the whole run; compare the
+real participants' figures with and without them.
 
-    .venv/bin/python bench/bench_closed_loop_study.py                  # SQLite, 100 x 2 s
+    .venv/bin/python bench/bench_closed_loop_study.py                  # SQLite, 100 + 100
+    .venv/bin/python bench/bench_closed_loop_study.py --attackers 2
     .venv/bin/python bench/bench_closed_loop_study.py --db "$CFTEACH_TEST_POSTGRES_URL"
+    .venv/bin/python bench/bench_closed_loop_study.py --db "$CFTEACH_TEST_POSTGRES_URL" \
+        --servers 2 --decision-workers 1
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import random
 import sys
 import tempfile
 import threading
 import time
+import uuid
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -46,6 +57,7 @@ class PacedClient:
                  lock: threading.Lock) -> None:
         self.client, self.pace, self.times, self.lock = client, pace, times, lock
         self.last = time.monotonic()
+        self.deciding: float | None = None  # perf_counter() of the item_done being decided
 
     def _timed(self, kind: str, fn: Any, *a: Any, **k: Any) -> httpx.Response:  # noqa: ANN401
         t0 = time.perf_counter()
@@ -56,7 +68,20 @@ class PacedClient:
         return r
 
     def get(self, *a: Any, **k: Any) -> httpx.Response:  # noqa: ANN401
-        return self._timed("page", self.client.get, *a, **k)
+        kind = "wait" if k.get("params", {}).get("wait") else "page"
+        r = self._timed(kind, self.client.get, *a, **k)
+        self._decided(r)
+        return r
+
+    def _decided(self, r: httpx.Response) -> None:
+        """Close the decision being timed once the page has its next item."""
+        if self.deciding is None or r.status_code != 200:
+            return
+        body = r.json()
+        if not body.get("state", body)["step"].get("preparing"):
+            with self.lock:
+                self.times["decision"].append(time.perf_counter() - self.deciding)
+            self.deciding = None
 
     def post(self, url: str, *a: Any, json: dict | None = None, **k: Any) -> httpx.Response:  # noqa: ANN401
         if url != "/api/event":  # starting the session
@@ -65,25 +90,49 @@ class PacedClient:
         if wait > 0:
             time.sleep(wait)
         self.last = time.monotonic()
-        kind = "decision" if json and json.get("type") == "item_done" else "event"
-        r = self._timed(kind, self.client.post, url, *a, json=json, **k)
+        if json and json.get("type") == "item_done":
+            self.deciding = time.perf_counter()
+        r = self._timed("event", self.client.post, url, *a, json=json, **k)
         with self.lock:
-            dt = self.times[kind][-1]
-            if kind == "decision":
-                self.times["event"].append(dt)
-            self.times.setdefault(f"type:{json['type']}", []).append(dt)
+            self.times.setdefault(f"type:{json['type']}", []).append(self.times["event"][-1])
+        self._decided(r)
         return r
+
+
+class RoundRobin:
+    """httpx-like get/post sending each request to the next server in turn."""
+
+    def __init__(self, clients: list[httpx.Client]) -> None:
+        self.clients, self.n = clients, 0
+
+    def _next(self) -> httpx.Client:
+        self.n += 1
+        return self.clients[self.n % len(self.clients)]
+
+    def get(self, *a: Any, **k: Any) -> httpx.Response:  # noqa: ANN401
+        return self._next().get(*a, **k)
+
+    def post(self, *a: Any, **k: Any) -> httpx.Response:  # noqa: ANN401
+        return self._next().post(*a, **k)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("-n", "--participants", type=int, default=100)
+    ap.add_argument("-n", "--participants", type=int, default=200)
     ap.add_argument("--pace", type=float, default=2.0, help="seconds between one "
                     "participant's events")
     ap.add_argument("--max-items", type=int, default=12, help="teacher's max_items")
     ap.add_argument("--db", default=None, help="database URL (default: a fresh SQLite file)")
-    ap.add_argument("--open-loop", action="store_true", help="the same run with the "
-                    "'proposed' condition instead (a baseline for the machine's own load)")
+    ap.add_argument("--conditions", default="closed_loop,proposed",
+                    help="study conditions (assignment balances over them)")
+    ap.add_argument("--servers", type=int, default=1, help="`cfteach serve` processes on "
+                    "the one database (PostgreSQL for more than one)")
+    ap.add_argument("--decision-workers", type=int, default=2, help="per server")
+    ap.add_argument("--attackers", type=int, default=0, help="closed-loop sessions sending "
+                    "refused answers and page reads at their rate limits")
+    ap.add_argument("--refusal-cost", type=int, default=0, metavar="N", help="instead: send "
+                    "N refused closed-loop answers of each kind from one session and print "
+                    "the server's CPU per refusal")
     ap.add_argument("--timeout", type=float, default=900.0, help="give up after (s)")
     args = ap.parse_args()
     if not 1 <= args.participants <= MAX_PARTICIPANTS:
@@ -92,26 +141,131 @@ def main() -> int:
         ap.error("--pace must be at least 0.2 s")
     tmp = Path(tempfile.mkdtemp(prefix="cfteach-cl-load-"))
     study = tmp / "study"
-    init_study(study, preview_sources(["skateboard"]), demo_step_ms=10,
-               conditions=["proposed" if args.open_loop else "closed_loop"],
+    conds = [c.strip() for c in args.conditions.split(",") if c.strip()]
+    init_study(study, preview_sources(["skateboard"]), demo_step_ms=10, conditions=conds,
                teacher={"max_items": args.max_items})
     db = args.db or f"sqlite:///{tmp / 'load.db'}"
     if db.startswith("postgresql"):
         engine = make_engine(db)
         drop_schema(engine)
         engine.dispose()
-    with serving_process(study, "--db", db, "--sessions-per-minute", "0",
-                         "--researcher-token", "bench") as (base, proc):
-        cpu0, own0 = _cpu(proc.pid), _own_cpu()
-        sent, times, wall = _run(base, args)
-        cpu = (_cpu(proc.pid) - cpu0, _own_cpu() - own0)
+    if args.refusal_cost:
+        return _refusal_cost(study, db, args.refusal_cost)
+    with contextlib.ExitStack() as stack:
+        servers = [stack.enter_context(serving_process(
+            study, "--db", db, "--sessions-per-minute", "0", "--researcher-token", "bench",
+            "--decision-workers", str(args.decision_workers), timeout=600))
+            for _ in range(args.servers)]
+        bases = [b for b, _ in servers]
+        pids = [p.pid for _, p in servers]
+        cpu0, own0, load0 = _tree_cpu(pids), _own_cpu(), os.getloadavg()[0]
+        stop = threading.Event()
+        attackers = _attackers(bases, args, stop)
+        try:
+            sent, times, wall = _run(bases, args)
+        except Exception:
+            for _, p in servers:
+                if p.poll() is not None:  # a server died: say why
+                    print(f"server {p.pid} exited with {p.returncode}: "
+                          f"{p.stderr.read()[-3000:]}", file=sys.stderr)
+            raise
+        stop.set()
+        for t in attackers:
+            t.join(30)
+        cpu = (_tree_cpu(pids) - cpu0, _own_cpu() - own0)
+    print(f"load average at start {load0:.1f}")
     return _report(db, sent, times, wall, cpu, args)
 
 
 def _cpu(pid: int) -> float:
     """CPU seconds (user + system) a process has used so far (Linux /proc)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _tree_cpu(pids: list[int]) -> float:
+    """CPU seconds of the server processes and their children (the decision workers)."""
+    total = 0.0
+    for pid in pids:
+        kids = Path(f"/proc/{pid}/task/{pid}/children")
+        children = kids.read_text().split() if kids.exists() else []
+        total += _cpu(pid) + sum(_cpu(int(c)) for c in children)
+    return total
+
+
+def _refusal_cost(study: Path, db: str, n: int) -> int:
+    """Server CPU (server process and its decision workers) per refused request."""
+    with serving_process(study, "--db", db, "--events-per-minute", "0",
+                         "--states-per-minute", "0", "--decision-workers", "1",
+                         timeout=600) as (base, proc), \
+            httpx.Client(base_url=base, timeout=60) as c:
+        for j in range(20):
+            tok = c.post("/api/session", json={"prolific_pid": f"COST{j:02d}xx"}).json()["token"]
+            run_participant(c, None, token=tok, stop_after=6)
+            h = {"X-Session-Token": tok}
+            st = c.get("/api/state", headers=h, params={"wait": 5}).json()
+            if st["step"]["kind"] == "closed_loop":
+                break
+        step = st["step_index"]
+        time.sleep(3)  # the decision after the first item, made ahead, is over
+        kinds = {"wrong item (409 wrong_item)": ("item_done", {"item": 99}),
+                 "unwatched demonstration (409 demos_unwatched)": ("item_done", {"item": 0}),
+                 "actions on a demonstration (422 bad_payload)": (
+                     "item_done", {"item": 0, "actions": ["up"] * 40}),
+                 "wrong step, no closed-loop work (409 wrong_step)": ("continue", {})}
+        print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+        for label, (type_, payload) in kinds.items():
+            cpu0 = _tree_cpu([proc.pid])
+            for _ in range(n):
+                r = c.post("/api/event", headers=h, json={
+                    "event_id": uuid.uuid4().hex, "type": type_, "payload": payload,
+                    "step_index": step + (5 if type_ == "continue" else 0)})
+                assert r.status_code in (409, 422), r.text
+            cpu = (_tree_cpu([proc.pid]) - cpu0) / n * 1000
+            print(f"{label}: server CPU {cpu:.2f} ms per refusal (n={n})")
+    return 0
+
+
+def _attackers(bases: list[str], args: argparse.Namespace,
+               stop: threading.Event) -> list[threading.Thread]:
+    """Closed-loop sessions that, for the whole run, send `item_done` answers the server
+    refuses (a wrong item: validated, never decided) at the event limit (600 per minute
+    weighted, an answer weighing 4) and page reads at the page-read limit (120 per minute)."""
+    threads = []
+    for k in range(args.attackers):
+        def attack(k: int = k) -> None:
+            with httpx.Client(base_url=bases[0], timeout=60) as c:
+                tok, step = None, None
+                for j in range(20):  # until assignment gives a closed-loop session
+                    r = c.post("/api/session", json={"prolific_pid": f"ATTACK{k:02d}{j:02d}x"})
+                    tok = r.json()["token"]
+                    run_participant(c, None, token=tok, stop_after=6)
+                    st = c.get("/api/state", headers={"X-Session-Token": tok}).json()
+                    if st["step"]["kind"] == "closed_loop":
+                        step = st["step_index"]
+                        break
+                if step is None:
+                    return
+                h = {"X-Session-Token": tok}
+                period, nxt = 60 / (600 / 4 + 120), time.monotonic()
+                n = 0
+                while not stop.is_set():
+                    n += 1
+                    if n % 270 < 150:
+                        c.post("/api/event", headers=h, json={
+                            "event_id": uuid.uuid4().hex, "step_index": step,
+                            "type": "item_done", "payload": {"item": 999}})
+                    else:
+                        c.get("/api/state", headers=h)
+                    nxt += period
+                    time.sleep(max(0.0, nxt - time.monotonic()))
+        t = threading.Thread(target=attack, daemon=True)
+        t.start()
+        threads.append(t)
+    return threads
 
 
 def _own_cpu() -> float:
@@ -121,8 +275,9 @@ def _own_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def _run(base: str, args: argparse.Namespace) -> tuple[dict[str, int], dict, float]:
-    times: dict[str, list[float]] = {"page": [], "event": [], "decision": [], "other": []}
+def _run(bases: list[str], args: argparse.Namespace) -> tuple[dict[str, int], dict, float]:
+    times: dict[str, list[float]] = {"page": [], "event": [], "decision": [], "other": [],
+                                     "wait": []}
     lock = threading.Lock()
     deadline = time.monotonic() + args.timeout
     rng = random.Random(0)
@@ -130,8 +285,13 @@ def _run(base: str, args: argparse.Namespace) -> tuple[dict[str, int], dict, flo
 
     def one(i: int) -> tuple[str, int]:
         time.sleep(offsets[i])
-        limits = httpx.Limits(max_connections=2)
-        with httpx.Client(base_url=base, timeout=60, limits=limits) as c:
+        # idle connections closed by us before uvicorn's 5 s keep-alive timeout closes them
+        # (else a request sent as the server closes one is reset)
+        limits = httpx.Limits(max_connections=2, keepalive_expiry=2.0)
+        with contextlib.ExitStack() as stack:
+            cs = [stack.enter_context(httpx.Client(base_url=b, timeout=60, limits=limits))
+                  for b in bases]
+            c = cs[0] if len(cs) == 1 else RoundRobin(cs)
             paced = PacedClient(c, args.pace, times, lock)
             out = run_participant(paced, {"prolific_pid": f"CLLOAD{i:06d}", "study_id": "B",
                                           "session_id": f"S{i}"})
@@ -161,9 +321,14 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
     with engine.connect() as conn:
         stored = dict(conn.execute(select(Session.participant_id, func.count(Event.id))
                                    .join(Event, Event.session_pk == Session.id)
+                                   .where(Session.prolific_pid.not_like("ATTACK%"))
                                    .group_by(Session.participant_id)).all())
         done = conn.scalar(select(func.count()).select_from(Session)
                            .where(Session.status == "completed"))
+        dup_items = conn.scalar(select(func.count()).select_from(
+            select(ClosedLoopItem.session_pk).group_by(
+                ClosedLoopItem.session_pk, ClosedLoopItem.domain)
+            .having(func.max(ClosedLoopItem.position) + 1 != func.count()).subquery()))
         items = conn.scalar(select(func.count()).select_from(ClosedLoopItem))
         gaps = conn.scalar(select(func.count()).select_from(
             select(Event.session_pk).group_by(Event.session_pk)
@@ -171,23 +336,26 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
     engine.dispose()
     kind = db.split(":")[0].split("+")[0]
     events = sum(sent.values())
-    who = "open-loop (proposed)" if args.open_loop else "closed-loop"
-    print(f"database: {kind}; {who} participants: {args.participants} at once, one "
-          f"event per {args.pace:g} s each; wall time {wall:.0f} s; {events} events "
-          f"acknowledged ({events / wall:.0f}/s); {items} closed-loop items")
+    print(f"database: {kind}; {args.servers} server process(es) x {args.decision_workers} "
+          f"decision worker(s); participants: {args.participants} at once ({args.conditions}),"
+          f" one event per {args.pace:g} s each; attackers {args.attackers}; wall time "
+          f"{wall:.0f} s; {events} events acknowledged ({events / wall:.0f}/s); {items} "
+          "closed-loop items")
     print(f"CPU: server {cpu[0]:.0f} s ({cpu[0] / wall:.2f} cores), simulated participants "
           f"{cpu[1]:.0f} s ({cpu[1] / wall:.2f} cores); load average "
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     print(f"page (GET /api/state):       {_pct(times['page'])}")
     print(f"every event (POST):          {_pct(times['event'])}")
-    print(f"decisions (item_done POST):  {_pct(times['decision'])}")
+    print(f"decisions (item_done -> next item shown): {_pct(times['decision'])}")
+    print(f"waits for a prepared item (GET ?wait=): {_pct(times['wait'])}")
     slow = sorted(((k[5:], np.percentile(v, 99) * 1000) for k, v in times.items()
                    if k.startswith("type:")), key=lambda x: -x[1])
     print("p99 by event type: " + ", ".join(f"{k} {ms:.0f} ms" for k, ms in slow))
     lost = {p: n - stored.get(p, 0) for p, n in sent.items() if stored.get(p, 0) != n}
     print(f"stored: {sum(stored.values())} events for {len(stored)} sessions; completed "
-          f"{done}/{args.participants}; sessions with seq gaps {gaps}")
-    ok = not lost and done == args.participants and gaps == 0
+          f"{done}/{args.participants}; sessions with seq gaps {gaps}; with item gaps or "
+          f"repeats {dup_items}")
+    ok = not lost and done == args.participants and gaps == 0 and dup_items == 0
     print("no event lost or duplicated" if ok else f"MISMATCH: {lost}")
     return 0 if ok else 1
 

@@ -53,6 +53,12 @@ class Api:
     def state(self) -> dict:
         return self.c.get("/api/state", headers=self.h).json()
 
+    def ready(self) -> dict:
+        """The page once the next item is decided (the page waits the same way)."""
+        st = self.c.get("/api/state", headers=self.h, params={"wait": 5}).json()
+        assert not st["step"].get("preparing"), st["step"]
+        return st
+
     def send(self, type_: str, payload: dict, step: int | None = None) -> object:
         step = self.state()["step_index"] if step is None else step
         return self.c.post("/api/event", headers=self.h, json={
@@ -213,8 +219,8 @@ def test_item_checks_and_state_from_events(cl_study: Path, db_url: str) -> None:
     app = create_app(cl_study, db_url, seed=5)
     client, who = _closed_loop_client(app)
     with client:
-        st = who.to_closed_loop()
-        item = st["step"]["item"]
+        who.to_closed_loop()
+        item = who.ready()["step"]["item"]
         assert item["kind"] == "demonstration" and item["position"] == 0
         # not watched yet
         r = who.send("item_done", {"item": 0})
@@ -230,7 +236,7 @@ def test_item_checks_and_state_from_events(cl_study: Path, db_url: str) -> None:
                                           "watch_ms": 50}).status_code == 200
         r = who.send("item_done", {"item": 0})
         assert r.status_code == 200, r.text
-        nxt = r.json()["state"]["step"]["item"]
+        nxt = who.ready()["step"]["item"]
         assert nxt["position"] == 1 and nxt["kind"] == "test"
         # an unfinished answer is refused and changes nothing
         r = who.send("item_done", {"item": 1, "actions": []})
@@ -241,7 +247,7 @@ def test_item_checks_and_state_from_events(cl_study: Path, db_url: str) -> None:
         moves = shortest_path(nxt["game"])
         r = who.send("item_done", {"item": 1, "actions": moves, "time_ms": 5})
         assert r.status_code == 200
-        third = r.json()["state"]["step"]["item"]
+        third = who.ready()["step"]["item"]
         assert third["position"] == 2
         study = load_study(cl_study)
         cell = study["closed_loop"]["skateboard"]
@@ -287,8 +293,10 @@ def test_kill_9_mid_session_lands_on_the_same_item(tmp_path: Path) -> None:
         token = r.json()["token"]
         # consent .. domain intro (6 pages), then 3 items
         got = run_participant(client, None, token=token, stop_after=9)
-        acked = got["state"]
-        assert acked["step"]["kind"] == "closed_loop"
+        assert got["state"]["step"]["kind"] == "closed_loop"
+        acked = client.get("/api/state", headers={"X-Session-Token": token},
+                           params={"wait": 5}).json()  # the item decided after them
+        assert acked["step"]["kind"] == "closed_loop" and "item" in acked["step"]
         proc.kill()  # SIGKILL: no shutdown of any kind
         proc.wait()
     with serving_process(study_dir, "--db", db) as (base, _), \
@@ -347,7 +355,7 @@ def test_next_item_decided_in_background_while_a_demonstration_is_watched(
         r = who.send("item_done", {"item": 0})
         assert r.status_code == 200, r.text
         assert calls == []
-        item = r.json()["state"]["step"]["item"]
+        item = who.ready()["step"]["item"]
         assert (item["position"], item["kind"]) == (decided.index, decided.kind)
 
 

@@ -181,8 +181,9 @@ def read_table(path: Path, fname: str) -> pd.DataFrame:
     return df
 
 
-def load_export(export_dir: str | Path) -> StudyExport:
-    """Read and validate the export in `export_dir`; raise `ExportError` on any problem."""
+def load_export(export_dir: str | Path, keep_sessions: list[str] | None = None) -> StudyExport:
+    """Read and validate the export in `export_dir`; raise `ExportError` on any problem
+    (two sessions of one Prolific participant too, unless `keep_sessions` says which)."""
     d = Path(export_dir)
     if not d.is_dir():
         raise ExportError(f"export directory {d} does not exist")
@@ -239,7 +240,9 @@ def load_export(export_dir: str | Path) -> StudyExport:
     validate.check_timestamps(participants)
     validate.check_test_items(tests)
     validate.check_optimal(tests)
-    return StudyExport(participants, tests, likert, demos)
+    export = StudyExport(participants, tests, likert, demos)
+    kept = validate.one_session_per_participant(participants, keep_sessions)
+    return export if len(kept) == len(participants) else export.subset(kept)
 
 
 def write_export(export: StudyExport, export_dir: str | Path) -> Path:

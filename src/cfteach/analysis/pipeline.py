@@ -25,6 +25,7 @@ class AnalysisConfig:
     exclusions: ExclusionConfig = field(default_factory=ExclusionConfig)
     padjust: str = "holm"  # correction of the within-subjects post hocs and pairwise MWUs
     authors_tukey: bool = True  # also report the authors' between-groups Tukey for H1
+    keep_sessions: tuple[str, ...] = ()  # the session to keep of a participant with several
     figures: bool = True
     nagq: int = 1  # GLMM: 1 = glmer's Laplace fit; 0 = lme4's faster nAGQ = 0 scheme
 
@@ -201,7 +202,7 @@ def analyze(
         if n_closed and n_closed == sum(by_condition.values()):
             return _closed_loop_only(export_dir, out, n_closed, note)
         with closed_loop.paper_only(export_dir) as paper_dir:
-            export = load_export(paper_dir)
+            export = load_export(paper_dir, keep_sessions=list(cfg.keep_sessions))
         bar.update()
         bar.set_postfix_str("statistics")
         results, frames = compute_results(export, cfg, str(export_dir), note)

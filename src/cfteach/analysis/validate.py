@@ -123,3 +123,30 @@ def check_timestamps(participants: pd.DataFrame) -> None:
             f"participants.csv: column 'completed_at' is before 'started_at' at line(s) "
             f"{_lines(bad)}"
         )
+
+
+def one_session_per_participant(participants: pd.DataFrame,
+                                keep_sessions: list[str] | None = None) -> list[str]:
+    """The sessions to analyse: all, unless a Prolific participant has several, which is
+    refused (a participant counted twice) unless `keep_sessions` names the one to keep of
+    each (the others are dropped). Previews (no prolific_pid) are not checked."""
+    keep = list(keep_sessions or [])
+    ids = set(participants["participant_id"].astype(str))
+    unknown = [k for k in keep if k not in ids]
+    if unknown:
+        raise ExportError(f"--keep-session {unknown[0]!r} is not in participants.csv")
+    pid = participants["prolific_pid"].fillna("").astype(str)
+    sessions = participants.assign(_pid=pid)[pid != ""].groupby("_pid")["participant_id"]
+    drop: list[str] = []
+    for who, group in sessions:
+        if len(group) < 2:
+            continue
+        chosen = [g for g in group if g in keep]
+        if len(chosen) != 1:
+            raise ExportError(
+                f"participants.csv: prolific_pid {who!r} has {len(group)} sessions "
+                f"({', '.join(map(str, group))}); name the one to analyse with "
+                "--keep-session PARTICIPANT_ID"
+            )
+        drop += [g for g in group if g != chosen[0]]
+    return [i for i in participants["participant_id"] if i not in set(drop)]

@@ -190,6 +190,15 @@ def analyze(
             help="Planted counterfactual x difficulty interaction (logit).", rich_help_panel=_SYN
         ),
     ] = 0.35,
+    keep_session: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--keep-session",
+            help="Of a Prolific participant with several sessions, the one (participant_id) "
+            "to analyse; repeat for each such participant.",
+            rich_help_panel=_EXC,
+        ),
+    ] = None,
     export_only: Annotated[
         bool,
         typer.Option(
@@ -263,6 +272,7 @@ def analyze(
             padjust=padjust,
             figures=not no_figures,
             authors_tukey=authors_tukey,
+            keep_sessions=tuple(keep_session or ()),
         )
         with _progress.busy("analysing"):
             results = run(export_dir, out, cfg, note=note)

@@ -253,6 +253,14 @@ def serve(
         False, "--new-version", help="Start even though sessions are in progress on an "
         "older study file this database does not hold (they can then not finish)."),
     quiet: Annotated[bool, _opt.quiet()] = False,
+    states_per_minute: int = typer.Option(120, help="Page reads (GET /api/state) per "
+                                          "session per minute (0 = no limit)."),
+    decision_workers: int = typer.Option(
+        2, min=0, max=64, help="Worker processes deciding closed-loop items (0 = a thread "
+        "of the server process)."),
+    allow_async_commit: bool = typer.Option(
+        False, "--allow-async-commit", help="Run on a PostgreSQL database with "
+        "synchronous_commit=off (acknowledged answers could be lost in a crash)."),
 ) -> None:
     """Run the study server (participants open /?PROLIFIC_PID=...&STUDY_ID=...&SESSION_ID=...)."""
     import secrets
@@ -282,7 +290,9 @@ def serve(
                              sessions_per_minute=sessions_per_minute,
                              events_per_minute=events_per_minute,
                              auth_failures_per_minute=auth_failures_per_minute,
-                             new_version=new_version)
+                             states_per_minute=states_per_minute,
+                             decision_workers=decision_workers,
+                             allow_async_commit=allow_async_commit, new_version=new_version)
     except StudyError as e:
         typer.echo(f"Error: {e}", err=True)
         raise typer.Exit(1) from None

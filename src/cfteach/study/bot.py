@@ -48,7 +48,7 @@ def run_participant(client: Any, params: dict | None, *, study: dict | None = No
         answers["events"] += 1
         return resp.json()
 
-    st = client.get("/api/state", headers=headers).json()
+    st = _state(client, headers)
     advanced = 0
     while st["status"] == "in_progress" and st["step"]["kind"] != "complete":
         if stop_after is not None and advanced >= stop_after:
@@ -72,10 +72,14 @@ def run_participant(client: Any, params: dict | None, *, study: dict | None = No
                     send(i, "demo_play_end", {"demo_index": k, "completed": True,
                                               "watch_ms": round(1000 * (time.monotonic() - t0))})
             out = send(i, "continue", {})
+        elif kind == "closed_loop" and s.get("preparing"):
+            # the next item is being decided: wait for it as the page does
+            st = _state(client, headers, wait=2.0)
+            continue
         elif kind == "closed_loop":
             item = s["item"]
             k = item["position"]
-            if item["kind"] == "demonstration" and item["completed"] < 1:
+            if item["kind"] != "test" and item["completed"] < 1:
                 need = demo_required_ms(item["n_actions"], s["step_ms"])
                 send(i, "demo_play_start", {"demo_index": k})
                 t0 = time.monotonic()
@@ -111,6 +115,13 @@ def run_participant(client: Any, params: dict | None, *, study: dict | None = No
         advanced += 1
     answers["state"] = st
     return answers
+
+
+def _state(client: Any, headers: dict, wait: float = 0.0) -> dict:
+    r = client.get("/api/state", headers=headers,
+                   **({"params": {"wait": wait}} if wait else {}))
+    _ok(r)
+    return r.json()
 
 
 def _detour(game: dict) -> list[str]:

@@ -19,6 +19,7 @@ from cfteach.mdp.scoring import is_optimal
 
 from .controls import action_specs_of, controls
 from .games import best_path, build_game, optimal_value, public_game, replay
+from .identity import new_study_key
 from .layout import instance_layout
 from .practice import (
     ACTIONS,
@@ -142,6 +143,9 @@ def init_study(out: str | Path, sources: Iterable[DomainSource], *,
         study["closed_loop"] = closed
     body = json.dumps(study, sort_keys=True, separators=(",", ":"))
     study["version"] = hashlib.sha256(body.encode()).hexdigest()[:12]
+    # the study's identity (one session per Prolific participant): outside the version,
+    # and kept when the folder is initialised again
+    study["study_key"] = new_study_key(out)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "study.json"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import weakref
 from pathlib import Path
 
 from sqlalchemy import Engine, create_engine, event, make_url, text
@@ -9,6 +10,32 @@ from sqlalchemy import Engine, create_engine, event, make_url, text
 from .sqlite_writes import WalSync, connection_class
 
 HERE = Path(__file__).parent
+_SYNCS: weakref.WeakKeyDictionary[Engine, WalSync] = weakref.WeakKeyDictionary()
+
+
+def durable_barrier(engine: Engine) -> None:
+    """Return once whatever a read of `engine` can see now is on disk. SQLite (group
+    commit, sqlite_writes) shows a commit a few ms before its fsync; PostgreSQL with
+    `synchronous_commit` on (checked at start: `check_synchronous_commit`) never does."""
+    sync = _SYNCS.get(engine)
+    if sync is not None:
+        sync.barrier()
+
+
+def check_synchronous_commit(engine: Engine, *, allow_off: bool = False) -> str | None:
+    """PostgreSQL's `synchronous_commit` for the study's connections; raise ValueError if
+    it is ``off`` (a commit, hence an acknowledged answer, could then be lost in a crash)
+    unless `allow_off`. None on SQLite."""
+    if engine.dialect.name != "postgresql":
+        return None
+    with engine.connect() as conn:
+        value = str(conn.exec_driver_sql("SHOW synchronous_commit").scalar())
+    if value == "off" and not allow_off:
+        raise ValueError("PostgreSQL runs with synchronous_commit=off: an acknowledged answer "
+                         "could be lost in a crash. Set it to on for this database (ALTER "
+                         "DATABASE ... SET synchronous_commit = on) or pass "
+                         "--allow-async-commit to run anyway")
+    return value
 
 
 def make_engine(url: str) -> Engine:
@@ -20,6 +47,8 @@ def make_engine(url: str) -> Engine:
         sync = WalSync(str(Path(path).resolve())) if path and path != ":memory:" else None
         engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 30,
                                                   "factory": connection_class(sync)})
+        if sync is not None:
+            _SYNCS[engine] = sync
 
         @event.listens_for(engine, "connect")
         def _pragmas(dbapi_conn, _rec):  # noqa: ANN001

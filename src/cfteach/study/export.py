@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from collections import defaultdict
 from datetime import UTC, datetime
 from pathlib import Path
@@ -224,7 +225,7 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
             rows["closed_loop_items.csv"].append([
                 s.participant_id, it.domain, s.domain_order.split(";").index(it.domain) + 1,
                 it.position, it.kind, it.purpose, "" if it.about is None else it.about,
-                it.env_code, it.env_index, json.dumps(it.start_state, sort_keys=True),
+                it.env_code, it.env_index, strict_json(it.start_state),
                 teacher_seed(s.seed, it.domain), it.actions or "",
                 repr(it.reward) if test else "", repr(it.optimal_reward) if test else "",
                 repr(max(0.0, it.optimal_reward - it.reward)) if test else "",
@@ -241,13 +242,13 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
             rows["client_reports.csv"].append([
                 s.participant_id if s else "", _iso(r.server_at), r.path, r.http_status,
                 r.error, r.detail, ev.get("type", ""), ev.get("step_index", ""),
-                "" if r.event is None else json.dumps(r.event, sort_keys=True)])
+                "" if r.event is None else strict_json(r.event)])
     counts = {}
     for name, cols in COLUMNS.items():
         with open(out / name, "w", newline="", encoding="utf-8") as f:
             w = csv.writer(f)
             w.writerow([c for c, _, _ in cols])
-            w.writerows(rows[name])
+            w.writerows([_finite_cells(r) for r in rows[name]])
         counts[name] = len(rows[name])
     with open(out / "data_dictionary.csv", "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
@@ -258,3 +259,23 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
     engine.dispose()
     return counts
 
+
+def _strict(x: object) -> object:
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _strict(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_strict(v) for v in x]
+    return x
+
+
+def strict_json(x: object) -> str:
+    """JSON for a CSV cell: never NaN or Infinity (stored before the server refused them,
+    they become null), which strict JSON readers reject."""
+    return json.dumps(_strict(x), sort_keys=True, allow_nan=False)
+
+
+def _finite_cells(row: list) -> list:
+    """A CSV row with non-finite numbers left empty (as missing values are)."""
+    return ["" if isinstance(c, float) and not math.isfinite(c) else c for c in row]

@@ -1,13 +1,18 @@
-"""ASGI middleware in front of the study app: JSON-only API bodies, a body size cap that holds
-for chunked bodies too, and the security headers every response carries."""
+"""ASGI middleware in front of the study app: JSON-only API bodies, strict JSON (no NaN or
+Infinity), a body size cap that holds for chunked bodies too, a time limit on receiving a
+body, and the security headers every response carries."""
 
 from __future__ import annotations
 
+import asyncio
 import json
+import math
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 MAX_BODY = 64 * 1024
+#: Seconds a client may take to send a request body (a half-sent body holds a connection).
+BODY_TIMEOUT_S = 10.0
 CSP = ("default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'; "
        "connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'self'")
 SECURITY_HEADERS = [
@@ -32,8 +37,9 @@ class Guard:
     make the server hold more than `max_body` plus one chunk in memory.
     """
 
-    def __init__(self, app: ASGIApp, max_body: int = MAX_BODY) -> None:
-        self.app, self.max_body = app, max_body
+    def __init__(self, app: ASGIApp, max_body: int = MAX_BODY,
+                 body_timeout_s: float = BODY_TIMEOUT_S) -> None:
+        self.app, self.max_body, self.body_timeout_s = app, max_body, body_timeout_s
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -59,12 +65,19 @@ class Guard:
                               f"request body over {self.max_body} bytes", close=True)
                 return
             try:
-                body = await self._read(receive)
+                body = await asyncio.wait_for(self._read(receive), self.body_timeout_s)
             except _TooLarge:
                 await _refuse(send_with_headers, 413, "too_large",
                               f"request body over {self.max_body} bytes", close=True)
                 return
+            except TimeoutError:
+                await _refuse(send_with_headers, 408, "body_timeout", "request body not "
+                              f"received within {self.body_timeout_s:g} s", close=True)
+                return
             except _Gone:
+                return
+            if scope["path"].startswith("/api/") and (problem := _not_strict_json(body)):
+                await _refuse(send_with_headers, 422, "bad_request", problem)
                 return
             receive = _replay(body, receive)
         await self.app(scope, receive, send_with_headers)
@@ -84,6 +97,31 @@ class Guard:
             parts.append(chunk)
             if not message.get("more_body", False):
                 return b"".join(parts)
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"{name} is not JSON (numbers must be finite)")
+
+
+def _finite(text: str) -> float:
+    x = float(text)
+    if not math.isfinite(x):
+        raise ValueError(f"{text} is out of range (numbers must be finite)")
+    return x
+
+
+def _not_strict_json(body: bytes) -> str | None:
+    """Why `body` is not strict JSON (NaN, Infinity, or a number that overflows to it), or
+    None. Other syntax errors are left to the app's own parser and messages."""
+    try:
+        json.loads(body, parse_constant=_reject_constant, parse_float=_finite)
+    except ValueError as e:
+        msg = str(e)
+        if "finite" in msg:
+            return f"body: {msg}"
+    except RecursionError:
+        return "body: nested too deeply"
+    return None
 
 
 class _TooLarge(Exception):

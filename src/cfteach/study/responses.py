@@ -82,7 +82,9 @@ _WHY = {
     413: "Request body too large",
     415: "Body is not application/json",
     422: "Invalid request (names the field and the problem)",
+    408: "Request body not received in time",
     429: "Rate limited",
+    503: "Stored but not yet confirmed on disk: retry (the retry's 409 confirms it)",
 }
 
 

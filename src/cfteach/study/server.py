@@ -7,7 +7,7 @@ import html
 import secrets
 from pathlib import Path
 
-from fastapi import FastAPI, Header, Request
+from fastapi import FastAPI, Header, Query, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
@@ -15,11 +15,13 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from . import schemas
 from .config import StudyError, load_study
-from .db import make_engine, upgrade
-from .guard import Guard
+from .costs import event_cost
+from .db import check_synchronous_commit, make_engine, upgrade
+from .guard import BODY_TIMEOUT_S, Guard
 from .ratelimit import RateLimiter
 from .responses import Ack, EventAck, Progress, SessionStarted, State, errors
 from .service import ApiError, StudyService, well_formed_token
+from .sqlite_writes import NotDurable
 from .versions import store_version, unstored_in_progress
 
 HERE = Path(__file__).parent
@@ -35,10 +37,14 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
                researcher_token: str | None = None, seed: int | None = None,
                sessions_per_minute: int = 120, events_per_minute: int = 600,
                auth_failures_per_minute: int = 60,
-               reports_per_minute: int = 60, new_version: bool = False) -> FastAPI:
+               reports_per_minute: int = 60, states_per_minute: int = 120,
+               new_version: bool = False, decision_workers: int = 0,
+               allow_async_commit: bool = False,
+               body_timeout_s: float = BODY_TIMEOUT_S) -> FastAPI:
     """Build the server for one study folder; migrations run here, before serving.
 
-    Rate limits per minute (0 = off): new sessions per client address, events per session,
+    Rate limits per minute (0 = off): new sessions per client address, events per session
+    (weighted by the work each asks for: `costs.event_cost`), page reads per session,
     failed authentications per client address (beyond it, the address gets 429 before any
     token is looked up), error reports from the page per client address (a made-up token
     must not lift it). The client address is the connection's, or the one a trusted proxy
@@ -47,11 +53,20 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
     The study file is kept in the database, so sessions started on an older file finish on
     it. Sessions in progress on a file the database does not hold (a database from before
     files were kept) would be stranded: refuse to start unless `new_version`.
+
+    Closed-loop decisions run in `decision_workers` worker processes (0: one thread of this
+    process). PostgreSQL must commit synchronously unless `allow_async_commit`. A request
+    body not received within `body_timeout_s` is refused (408).
     """
     study = load_study(study_dir)
     if db_url is None:
         db_url = f"sqlite:///{Path(study_dir) / 'study.db'}"
     engine = make_engine(db_url)
+    try:
+        check_synchronous_commit(engine, allow_off=allow_async_commit)
+    except ValueError as e:
+        engine.dispose()
+        raise StudyError(str(e)) from None
     upgrade(engine)
     stranded = unstored_in_progress(engine, study["version"])
     if stranded and not new_version:
@@ -61,20 +76,23 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
                          f"this database does not hold ({which}); serve that file until they "
                          "finish, or pass --new-version to start anyway (they cannot finish)")
     store_version(engine, study)
-    service = StudyService(engine, study, seed=seed)
+    # worker processes only where there is a teacher to run
+    workers = decision_workers if study.get("closed_loop") else 0
+    service = StudyService(engine, study, seed=seed, decision_workers=workers)
     service.live.warm(study)  # closed-loop lesson pools: derived from the file, built now
     token = researcher_token or secrets.token_urlsafe(16)
     session_limit = RateLimiter(sessions_per_minute)
     event_limit = RateLimiter(events_per_minute)
     auth_limit = RateLimiter(auth_failures_per_minute)
     report_limit = RateLimiter(reports_per_minute)
+    state_limit = RateLimiter(states_per_minute)
 
     app = FastAPI(title="cfteach study", docs_url=None, redoc_url=None, openapi_url=None)
     app.state.service = service
     app.state.researcher_token = token
     app.state.limits = {"sessions": session_limit, "events": event_limit, "auth": auth_limit,
-                        "reports": report_limit}
-    app.add_middleware(Guard)
+                        "reports": report_limit, "states": state_limit}
+    app.add_middleware(Guard, body_timeout_s=body_timeout_s)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
     page = (HERE / "templates" / "index.html").read_text()
 
@@ -83,6 +101,15 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
         if e.code in AUTH_FAILURES:
             auth_limit.hit(_client(req))
         return _err(e.status, e.code, e.message)
+
+    @app.exception_handler(NotDurable)
+    async def _not_durable(_req: Request, _e: NotDurable) -> JSONResponse:
+        # stored and visible, but not confirmed on disk: neither "stored" nor "failed";
+        # the page retries, and the retry's 409 confirms it once the disk does
+        response = _err(503, "not_durable", "the request was received but could not be "
+                        "confirmed on disk; retry it")
+        response.headers["Retry-After"] = "1"
+        return response
 
     @app.exception_handler(StarletteHTTPException)
     async def _http_error(_req: Request, e: StarletteHTTPException) -> JSONResponse:
@@ -132,19 +159,24 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
         return JSONResponse({"token": row.token, "resumed": resumed,
                              "participant_id": row.participant_id})
 
-    @app.get("/api/state", response_model=State, responses=errors(401, 410, 422, 429))
-    def state(request: Request,
-              x_session_token: str | None = Header(default=None)) -> JSONResponse:
-        return JSONResponse(service.state(_session_token(request, x_session_token)))
+    @app.get("/api/state", response_model=State, responses=errors(401, 410, 422, 429, 503))
+    async def state(request: Request, x_session_token: str | None = Header(default=None),
+                    wait: float = Query(default=0.0, ge=0.0, le=5.0)) -> JSONResponse:
+        """The page; `wait` (s) waits that long for a closed-loop item being prepared
+        (holding no thread)."""
+        tok = _session_token(request, x_session_token)
+        if not state_limit.allow(tok):
+            raise ApiError(429, "rate_limited", "too many page reads; slow down")
+        return JSONResponse(await service.state_async(tok, wait=wait))
 
     @app.post("/api/event", response_model=EventAck,
-              responses=errors(400, 401, 409, 410, 413, 415, 422, 429))
-    def event(req: schemas.EventBody, request: Request,
-              x_session_token: str | None = Header(default=None)) -> JSONResponse:
+              responses=errors(400, 401, 408, 409, 410, 413, 415, 422, 429, 503))
+    async def event(req: schemas.EventBody, request: Request,
+                    x_session_token: str | None = Header(default=None)) -> JSONResponse:
         tok = _session_token(request, x_session_token)
-        if not event_limit.allow(tok):
+        if not event_limit.allow(tok, cost=event_cost(req.type)):
             raise ApiError(429, "rate_limited", "too many events; slow down")
-        return JSONResponse(service.post_event(tok, schemas.as_request(req)))
+        return JSONResponse(await service.post_event_async(tok, schemas.as_request(req)))
 
     @app.post("/api/client-report", response_model=Ack,
               responses=errors(400, 413, 415, 422, 429))

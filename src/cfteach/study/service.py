@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import hmac
 import random
 import re
@@ -15,20 +16,22 @@ from sqlalchemy import Engine, func, select, text
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session as DBSession
 from sqlalchemy.orm import sessionmaker
+from starlette.concurrency import run_in_threadpool
 
-from cfteach.domains.spec import BUILTIN_ACTIONS
 from cfteach.mdp.scoring import is_optimal
 
 from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell, completed_counts
-from .build import browser_game
-from .controls import PRACTICE_CONTROLS, controls
-from .games import ScoringError, public_game, replay
-from .layout import instance_layout
-from .live import LiveTeaching, path_states, responses_of
-from .models import ClientReport, ClosedLoopItem, Event, Session, TestResponse, aware, utcnow
-from .steps import ALLOWED, build_steps, demo_required_ms
-from .texts import EDUCATION, GENDERS, LIKERT
+from .closed_loop_steps import MAX_WAIT_S, ClosedLoopSteps
+from .db import durable_barrier
+from .decisions import Decider
+from .errors import ApiError
+from .games import ScoringError, replay
+from .identity import find_participant, participant_key, study_key
+from .live import LiveTeaching
+from .models import ClientReport, Event, Session, TestResponse, aware, utcnow
+from .pages import PageViews
+from .steps import ALLOWED, build_steps
 from .versions import load_version
 
 _PLACEHOLDER = re.compile(r"^\{\{?%.*%\}?\}$|^$")
@@ -44,18 +47,17 @@ def well_formed_token(token: str | None) -> bool:
     return token is not None and TOKEN_RE.fullmatch(token) is not None
 
 
-class ApiError(Exception):
-    """A request the server refuses; `status` is the HTTP code, `code` a stable name."""
-
-    def __init__(self, status: int, code: str, message: str) -> None:
-        super().__init__(message)
-        self.status, self.code, self.message = status, code, message
 
 
-class StudyService:
+#: Sessions over: a returning participant gets the page for the status, never a new session.
+FINISHED = ("completed", "screened_out", "declined")
+
+
+class StudyService(PageViews, ClosedLoopSteps):
     """All participant-facing operations; one instance per running server."""
 
-    def __init__(self, engine: Engine, study: dict, *, seed: int | None = None) -> None:
+    def __init__(self, engine: Engine, study: dict, *, seed: int | None = None,
+                 decision_workers: int = 0, event_wait_s: float = 0.1) -> None:
         self.engine = engine
         self.study = study
         self.Session = sessionmaker(engine, expire_on_commit=False)
@@ -70,6 +72,12 @@ class StudyService:
         # read from the database on first use (see versions.py).
         self._studies: dict[str, dict] = {study["version"]: study}
         self.live = LiveTeaching()
+        # closed-loop decisions: worker processes (0: one thread of this process)
+        self.decider = Decider(self.live, [study], decision_workers)
+        self.event_wait_s = event_wait_s
+
+    def close(self) -> None:
+        self.decider.close()
 
     # -- sessions -------------------------------------------------------------------------
 
@@ -91,14 +99,18 @@ class StudyService:
         pid = None if placeholder else pid
         study_id = None if req.study_id and _PLACEHOLDER.match(req.study_id) else req.study_id
         sess_id = None if req.session_id and _PLACEHOLDER.match(req.session_id) else req.session_id
-        pid_key = f"{study_id or ''}:{pid}" if pid and not preview else None
+        # one session per Prolific participant and study: keyed on the study's own identity
+        # (fixed at `study init`), never on the STUDY_ID the link carries
+        pid_key = participant_key(study_key(self.study), pid) if pid and not preview else None
         with self._lock, self.Session() as db, db.begin():
             if self._pg:
                 db.execute(text("SELECT pg_advisory_xact_lock(727274)"))
             if pid_key:
-                row = db.scalar(select(Session).where(Session.pid_key == pid_key))
+                row = find_participant(db, pid_key, pid)
                 if row is not None:
-                    if _proves(row, req.token, sess_id):
+                    # a finished session shows its status page (screened out, declined,
+                    # completed: nothing left to do or to steal in it), to anyone
+                    if row.status in FINISHED or _proves(row, req.token, sess_id):
                         return row, True
                     raise ApiError(409, "session_elsewhere", ELSEWHERE)
             elif req.token:
@@ -154,138 +166,81 @@ class StudyService:
 
     # -- reading the current page ---------------------------------------------------------
 
-    def state(self, token: str | None) -> dict:
+    def state(self, token: str | None, wait: float = 0.0) -> dict:
+        """The page to show. Only what is durable is shown (`durable_barrier`). A
+        closed-loop page whose next item is not decided yet submits the decision (once)
+        and waits for it up to `wait` s (then answers ``preparing: true``)."""
+        wait = min(max(0.0, wait), MAX_WAIT_S)
+        for _ in range(3):
+            view, job = self.read_state(token)
+            if job is None or not self._cl_ensure(job, wait):
+                return view
+            wait = 0.0  # recorded: read the page once more, with what was recorded
+        return view
+
+    async def state_async(self, token: str | None, wait: float = 0.0) -> dict:
+        """`state` for the event loop: the reads and writes run in the thread pool, and
+        the wait for a decision holds no thread at all."""
+        wait = min(max(0.0, wait), MAX_WAIT_S)
+        for _ in range(3):
+            view, job = await run_in_threadpool(self.read_state, token)
+            if job is None:
+                return view
+            fut = self.decider.submit(self._studies[job["version"]], job["pk"],
+                                      job["seed"], job["domain"], job["responses"])
+            try:
+                result = await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(fut)),
+                                                wait)
+            except Exception:  # noqa: BLE001 - not ready in time, or failed: retried later
+                if fut.done():
+                    self.decider.heal(fut)
+                return view
+            if not await run_in_threadpool(self._cl_record, job, result):
+                return view
+            wait = 0.0
+        return view
+
+    def read_state(self, token: str | None) -> tuple[dict, dict | None]:
+        """The page as stored (and durable), and the decision it waits for, if any."""
+        durable_barrier(self.engine)
         with self.ReadSession() as db, db.begin():
             row = self._session(db, token)
-            return self._view(db, row)
-
-    def _view(self, db: DBSession, row: Session) -> dict:
-        steps = self.steps(row)
-        s = self.study_of(row)
-        comp = s["completion"]
-        base = {"status": row.status, "step_index": row.step_index, "n_steps": len(steps),
-                "participant_id": row.participant_id, "is_preview": row.is_preview}
-        if row.status in ("screened_out", "declined"):
-            return {**base, "step": {"kind": row.status, "code": _code(comp, row.status),
-                                     "redirect": _redirect(comp, row.status, row)}}
-        step = dict(steps[row.step_index])
-        kind = step["kind"]
-        if kind == "consent" and s.get("consent_html"):
-            step["html"] = s["consent_html"]
-        if kind in ("free_play", "practice"):
-            p = s["practice"]
-            step.update(layout=p["layout"], game=p["game"],  # not secret: energy shown
-                        weights=p["weights"], start_energy=p["start_energy"],
-                        target_energy=p["target_energy"], attempts_used=row.practice_attempts,
-                        attempts_allowed=s["practice_attempts"], controls=PRACTICE_CONTROLS)
-        elif kind == "domain_intro":
-            step["info"] = _public_info(s["domain_info"][step["domain"]])
-            # A few configurations of this game: the demonstrations' layouts, unplayed.
-            seen, examples = set(), []
-            if row.condition == "closed_loop":
-                examples = s["closed_loop"][step["domain"]]["examples"]
-            for d in s["curricula"][step["domain"]].get(row.condition, []):
-                key = repr(d["layout"])
-                if key not in seen and len(examples) < 3:
-                    seen.add(key)
-                    examples.append({"layout": d["layout"], "state": d["states"][0]})
-            step["examples"] = examples
-        elif kind == "demos":
-            demos = s["curricula"][step["domain"]][row.condition]
-            step.update(info=_public_info(s["domain_info"][step["domain"]]), demos=demos,
-                        step_ms=s["demo_step_ms"],
-                        completed=self._demo_completions(db, row, row.step_index, len(demos)))
-        elif kind == "closed_loop":
-            step.update(info=_public_info(s["domain_info"][step["domain"]]),
-                        step_ms=s["demo_step_ms"], **self._cl_view(db, row, step))
-        elif kind == "survey":
-            step["items"] = {k: LIKERT[k] for k in ("informativeness", "mental_effort")}
-        elif kind == "test":
-            t = s["tests"][step["domain"]][row.test_set][step.pop("test_index")]
-            step.update(browser_game(t), info=_public_info(s["domain_info"][step["domain"]]),
-                        confidence=LIKERT["confidence"],
-                        n_trials=len(s["tests"][step["domain"]][row.test_set]),
-                        # so time_ms counts from the first showing, even across reloads
-                        elapsed_ms=max(0, int((utcnow() - aware(row.step_entered_at))
-                                              .total_seconds() * 1000)))
-        elif kind == "feedback":
-            n = db.scalar(select(func.count()).select_from(TestResponse).where(
-                TestResponse.session_pk == row.id, TestResponse.domain == step["domain"],
-                TestResponse.optimal.is_(True)))
-            total = len(s["tests"][step["domain"]][row.test_set])
-            step.update(correct=int(n or 0), total=total)
-        elif kind == "demographics":
-            step.update(genders=GENDERS, education=EDUCATION)
-        elif kind == "complete":
-            step.update(code=comp["completed"],
-                        redirect=None if row.is_preview else _redirect(comp, "completed", row))
-        return {**base, "step": step}
-
-    def _demo_completions(self, db: DBSession, row: Session, step_index: int,
-                          n: int) -> list[int]:
-        """Plays of each demonstration the server saw run start to end (`verified`)."""
-        counts = [0] * n
-        for payload in db.scalars(select(Event.payload).where(
-                Event.session_pk == row.id, Event.step_index == step_index,
-                Event.type == "demo_play_end", Event.verified.is_(True))):
-            if 0 <= payload["demo_index"] < n:
-                counts[payload["demo_index"]] += 1
-        return counts
-
-    def _check_demo(self, db: DBSession, row: Session, step: dict, ev: Event,
-                    p: schemas.DemoPlayStart | schemas.DemoPlayEnd, now: datetime) -> None:
-        """Refuse unknown demonstrations; time a play's end against its start, server-side.
-
-        A play counts as watched only if this end closes a start of the same demonstration
-        (the last play event of the step) and lasted, on the server's clock, at least the
-        replay's length minus a small tolerance (`steps.demo_required_ms`).
-        """
-        study = self.study_of(row)
-        if step["kind"] == "closed_loop":
-            item = self._cl_pending(db, row, step)
-            if item is None or p.demo_index != item.position or item.kind == "test":
-                raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not the "
-                               "demonstration this page shows")
-            pool = self.live.pool(study, step["domain"])
-            demos = {p.demo_index: {"actions": pool.ds.action_names(item.demo)}}
-        else:
-            demos = study["curricula"][step["domain"]][row.condition]
-        if p.demo_index >= len(demos) and step["kind"] != "closed_loop":
-            raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not one of this "
-                           f"page's {len(demos)} demonstrations")
-        if not isinstance(p, schemas.DemoPlayEnd):
-            return
-        start = db.scalar(select(Event).where(
-            Event.session_pk == row.id, Event.step_index == row.step_index,
-            Event.type.in_(("demo_play_start", "demo_play_end")))
-            .order_by(Event.seq.desc()).limit(1))
-        if (start is None or start.type != "demo_play_start"
-                or start.payload["demo_index"] != p.demo_index):
-            ev.server_ms, ev.verified = None, False
-            return
-        ev.server_ms = max(0, int((now - aware(start.server_at)).total_seconds() * 1000))
-        need = demo_required_ms(len(demos[p.demo_index]["actions"]), study["demo_step_ms"])
-        ev.verified = bool(p.completed) and ev.server_ms >= need
+            view = self._view(db, row)
+            job = None
+            if view["step"].get("preparing"):
+                job = self._cl_job(db, row, self.steps(row)[row.step_index])
+        return view, job
 
     # -- events ---------------------------------------------------------------------------
 
     def post_event(self, token: str | None, req: schemas.EventRequest) -> dict:
         """Store one event exactly once and apply its effect on the step machine."""
+        result = self.store_event(token, req)
+        return {"ok": True, **result, "state": self.state(token, wait=self.event_wait_s)}
+
+    async def post_event_async(self, token: str | None, req: schemas.EventRequest) -> dict:
+        result = await run_in_threadpool(self.store_event, token, req)
+        state = await self.state_async(token, wait=self.event_wait_s)
+        return {"ok": True, **result, "state": state}
+
+    def store_event(self, token: str | None, req: schemas.EventRequest) -> dict:
+        """Store the event (durably) and return what its acknowledgement adds."""
         try:
-            self._cl_prepare(token, req)
-        except (ApiError, ValueError, KeyError, TypeError, RuntimeError):
-            pass  # the transaction below refuses the event with the right answer
-        with self.Session() as db:
-            try:
-                with db.begin():
-                    row, result = self._apply(db, token, req)
-                    db.flush()
-                    view = self._view(db, row)
-            except IntegrityError as e:
-                raise ApiError(409, "duplicate_event",
-                               f"event {req.event_id} was already stored") from e
-            # Only now, after the commit, is the event acknowledged.
-            return {"ok": True, **result, "state": view}
+            with self.Session() as db, db.begin():
+                _row, result = self._apply(db, token, req)
+                db.flush()
+        except IntegrityError as e:
+            durable_barrier(self.engine)  # the stored copy is durable before we say so
+            raise ApiError(409, "duplicate_event",
+                           f"event {req.event_id} was already stored") from e
+        except ApiError as e:
+            if e.code == "duplicate_event":
+                durable_barrier(self.engine)
+            raise
+        # Only now, after the (durable) commit, is the event acknowledged. The page it
+        # leads to is read after it, outside the write lock; a closed-loop answer waits a
+        # moment for the next item (usually decided ahead) before answering "preparing".
+        return result
 
     def _apply(self, db: DBSession, token: str | None,
                req: schemas.EventRequest) -> tuple[Session, dict]:
@@ -319,12 +274,12 @@ class StudyService:
                    step_index=row.step_index, step_kind=kind, domain=step.get("domain"),
                    type=req.type,
                    payload=payload.model_dump(), client_ms=req.client_ms, server_at=now)
+        result: dict[str, Any] = {}
         if req.type in ("demo_play_start", "demo_play_end"):
-            self._check_demo(db, row, step, ev, payload, now)
+            result = self._check_demo(db, row, step, ev, payload, now)
         db.add(ev)
         db.flush()
         row.last_active_at = now
-        result: dict[str, Any] = {}
         advance = False
         if req.type in ("continue", "consent", "likert"):
             advance = True
@@ -349,147 +304,19 @@ class StudyService:
             row.age, row.gender, row.education = payload.age, payload.gender, payload.education
             advance = True
         elif req.type == "item_done":
-            advance = self._cl_item_done(db, row, step, ev, payload, now)
-        while advance:
-            row.step_index += 1
-            row.step_entered_at = now
-            advance = False
-            if steps[row.step_index]["kind"] == "complete":
-                row.status = "completed"
-                row.completed_at = now
-            elif steps[row.step_index]["kind"] == "closed_loop":
-                # the first item is decided now; a teacher with nothing to teach skips ahead
-                advance = self._cl_decide(db, row, steps[row.step_index], now) is None
+            self._cl_item_done(db, row, step, ev, payload, now)
+        if advance:
+            self._advance(db, row, now)
         return row, result
 
-    # -- the closed_loop condition (cfteach.study.live) ----------------------------------
-
-    def _cl_stored(self, db: DBSession, row: Session, step_index: int) -> list[dict]:
-        return list(db.scalars(select(Event.payload).where(
-            Event.session_pk == row.id, Event.step_index == step_index,
-            Event.type == "item_done").order_by(Event.seq)))
-
-    def _cl_pending(self, db: DBSession, row: Session, step: dict) -> ClosedLoopItem | None:
-        """The item on screen: the first one without an answer."""
-        return db.scalar(select(ClosedLoopItem).where(
-            ClosedLoopItem.session_pk == row.id, ClosedLoopItem.domain == step["domain"],
-            ClosedLoopItem.done_at.is_(None)).order_by(ClosedLoopItem.position).limit(1))
-
-    def _cl_decide(self, db: DBSession, row: Session, step: dict,
-                   now: datetime) -> ClosedLoopItem | None:
-        """Decide the next item from the stored events and record it; None when done."""
-        study = self.study_of(row)
-        dom = step["domain"]
-        responses = responses_of(self._cl_stored(db, row, row.step_index))
-        # usually found ready (decided by `_cl_prepare` or in the background), as this
-        # runs inside the write transaction
-        item, summary = self.live.decide(study, row.id, row.seed, dom, responses, ahead=False)
-        if item is None:
-            return None
-        ds = self.live.pool(study, dom).ds
-        inst = ds.instance(item.demo)
-        rec = ClosedLoopItem(
-            session_pk=row.id, domain=dom, position=item.index, kind=item.kind,
-            purpose=item.purpose, demo=item.demo, about=item.about,
-            env_code="".join(str(int(b)) for b in inst.env_code), env_index=int(inst.index),
-            start_state=inst.state_to_json(ds.trajectory_states(item.demo)[0]),
-            shown_at=now, **summary)
-        db.add(rec)
-        return rec
-
-    def _cl_prepare(self, token: str | None, req: schemas.EventRequest) -> None:
-        """Before the write transaction: decide the item this event will lead to, so the
-        transaction (which holds SQLite's write lock) only finds it ready. Speculative: any
-        problem is left for the transaction to report, and a refused event's decision is
-        simply never used (teachers are found by the responses they have seen)."""
-        if req.type not in ("item_done", "continue"):
-            return
-        with self.ReadSession() as db, db.begin():
-            row = self._session(db, token)
-            if row.status != "in_progress" or req.step_index != row.step_index:
-                return
-            steps = self.steps(row)
-            step = steps[row.step_index]
-            if step["kind"] == "closed_loop" and req.type == "item_done":
-                pending = self._cl_pending(db, row, step)
-                p = req.payload
-                if pending is None or p.get("item") != pending.position or (
-                        pending.kind == "test") != (p.get("actions") is not None):
-                    return
-                payloads = [*self._cl_stored(db, row, row.step_index), p]
-            elif (req.type == "continue" and row.step_index + 1 < len(steps)
-                  and steps[row.step_index + 1]["kind"] == "closed_loop"):
-                step, payloads = steps[row.step_index + 1], []
-            else:
-                return
-            study, pk, seed = self.study_of(row), row.id, row.seed
-        self.live.decide(study, pk, seed, step["domain"], responses_of(payloads))
-
-    def _cl_item_done(self, db: DBSession, row: Session, step: dict, ev: Event,
-                      p: schemas.ItemDone, now: datetime) -> bool:
-        """Record the answer to the item on screen and decide the next; True when the
-        domain's teaching is over (the session moves on to the survey)."""
-        item = self._cl_pending(db, row, step)
-        if item is None or p.item != item.position:
-            raise ApiError(409, "wrong_item", f"item {p.item} is not the item on screen "
-                           f"({'none' if item is None else item.position})")
-        study = self.study_of(row)
-        if item.kind == "test":
-            if p.actions is None:
-                raise ApiError(422, "bad_payload", "item_done: a test needs its actions")
-            game = self.live.game(study, step["domain"], item.demo)
-            try:
-                score = replay(game, study["domain_info"][step["domain"]]["weights"],
-                               p.actions)
-            except ScoringError as e:
-                raise ApiError(422, "bad_moves", str(e)) from e
-            best = float(self.live.pool(study, step["domain"]).ds.reward(item.demo))
-            item.actions, item.reward, item.optimal_reward = " ".join(p.actions), \
-                score.reward, best
-            item.optimal = is_optimal(score.reward, best)
-        else:
-            if p.actions is not None:
-                raise ApiError(422, "bad_payload", f"item_done: a {item.kind} takes no actions")
-            if item.kind == "demonstration":
-                done = self._demo_completions(db, row, row.step_index, item.position + 1)
-                if done[item.position] < 1:
-                    raise ApiError(409, "demos_unwatched", "the demonstration must be played "
-                                   "and watched to the end at least once")
-        item.done_at = now
-        item.server_ms = max(0, int((now - aware(item.shown_at)).total_seconds() * 1000))
-        db.flush()  # the event is stored: the teacher now sees its response
-        return self._cl_decide(db, row, step, now) is None
-
-    def _cl_view(self, db: DBSession, row: Session, step: dict) -> dict:
-        """What the page shows for the item on screen (decided when the last answer came)."""
-        study = self.study_of(row)
-        dom = step["domain"]
-        item = self._cl_pending(db, row, step)
-        if item is None:  # cannot happen: the step is left when teaching ends
-            raise ApiError(409, "wrong_step", "no closed-loop item is pending")
-        pool = self.live.pool(study, dom)
-        ds = pool.ds
-        inst = ds.instance(item.demo)
-        layout = instance_layout(dom, inst)
-        optimal = [inst.state_to_json(x) for x in ds.trajectory_states(item.demo)]
-        out: dict[str, Any] = {"item": {"position": item.position, "kind": item.kind,
-                                        "purpose": item.purpose, "layout": layout}}
-        if item.kind == "demonstration":
-            out["item"].update(states=optimal, n_actions=len(optimal) - 1,
-                               completed=self._demo_completions(
-                                   db, row, row.step_index, item.position + 1)[item.position])
-        elif item.kind == "test":
-            out["item"].update(game=public_game(self.live.game(study, dom, item.demo)),
-                               elapsed_ms=max(0, int((utcnow() - aware(item.shown_at))
-                                                     .total_seconds() * 1000)))
-        else:
-            failed = db.scalar(select(ClosedLoopItem).where(
-                ClosedLoopItem.session_pk == row.id, ClosedLoopItem.domain == dom,
-                ClosedLoopItem.position == item.about))
-            game = self.live.game(study, dom, item.demo)
-            answer = (failed.actions or "").split()
-            out["item"].update(optimal=optimal, answer=path_states(game, answer))
-        return out
+    def _advance(self, db: DBSession, row: Session, now: datetime) -> None:
+        """Move to the next page (a closed-loop page's first item is decided after the
+        commit, outside the transaction: see closed_loop_steps)."""
+        row.step_index += 1
+        row.step_entered_at = now
+        if self.steps(row)[row.step_index]["kind"] == "complete":
+            row.status = "completed"
+            row.completed_at = now
 
     def _practice(self, row: Session, p: schemas.PracticeAttempt) -> dict:
         prac = self.study_of(row)["practice"]
@@ -575,29 +402,6 @@ def _proves(row: Session, token: str | None, session_id: str | None) -> bool:
         return True
     return bool(session_id and row.session_id
                 and hmac.compare_digest(session_id.encode(), row.session_id.encode()))
-
-
-def _public_info(info: dict) -> dict:
-    out = {k: info[k] for k in ("title", "task", "actions", "note", "keys", "effects_word")}
-    # Study files written before per-domain controls play the built-in actions' keys.
-    out["controls"] = info.get("controls") or controls(BUILTIN_ACTIONS.values(), info["keys"])
-    return out
-
-
-#: The no-consent code of study files written before `--no-consent-code` existed.
-DEFAULT_DECLINED_CODE = "NOCONSENT"
-
-
-def _code(comp: dict, which: str) -> str:
-    if which == "declined":
-        return comp.get("declined", DEFAULT_DECLINED_CODE)
-    return comp[which]
-
-
-def _redirect(comp: dict, which: str, row: Session) -> str | None:
-    if not comp.get("url") or row.is_preview:
-        return None
-    return f"{comp['url']}{_code(comp, which)}"
 
 
 def _first_error(e: ValidationError) -> str:

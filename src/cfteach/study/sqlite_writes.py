@@ -24,6 +24,12 @@ import threading
 WRITE_WAIT_S = 30.0  # as SQLite's busy_timeout: then "database is locked"
 
 
+class NotDurable(OSError):
+    """A commit is visible but its fsync failed: the request must not be answered as stored
+    nor as failed (the server answers 503 and the page retries; the retry's 409 confirms
+    it once an fsync succeeds)."""
+
+
 class WalSync:
     """Makes commits durable with as few fsyncs of the WAL file as possible."""
 
@@ -33,11 +39,32 @@ class WalSync:
         self.committed = 0  # write commits counted so far
         self.durable = 0  # of those, how many a finished fsync covers
         self.fsyncs = 0
+        self.in_flight = 0  # COMMITs running now (visible to readers before they count)
         self._syncing = False
 
-    def wait_durable(self) -> None:
-        """Call right after a write transaction's COMMIT; returns once it is on disk."""
+    def begin_commit(self) -> None:
+        """Call right before a write transaction's COMMIT."""
         with self._cond:
+            self.in_flight += 1
+
+    def abort_commit(self) -> None:
+        with self._cond:
+            self.in_flight -= 1
+
+    def barrier(self) -> None:
+        """Return once every commit a read made now could see is on disk (for answers that
+        report stored data: a 409 duplicate, a page read). Free when all are already."""
+        with self._cond:
+            if self.in_flight == 0 and self.durable >= self.committed:
+                return
+        self.wait_durable(after_commit=False)
+
+    def wait_durable(self, *, after_commit: bool = True) -> None:
+        """Call right after a write transaction's COMMIT; returns once it is on disk.
+        Raises `NotDurable` if the fsync fails (the commit is visible all the same)."""
+        with self._cond:
+            if after_commit:
+                self.in_flight -= 1
             self.committed += 1
             mine = self.committed
             while self.durable < mine:
@@ -49,6 +76,8 @@ class WalSync:
                     self._cond.release()
                     try:
                         self._fsync()
+                    except OSError as e:
+                        raise NotDurable(f"fsync of {self.wal_path} failed: {e}") from e
                     finally:
                         self._cond.acquire()
                     self.durable = max(self.durable, upto)
@@ -89,12 +118,18 @@ def connection_class(sync: WalSync | None) -> type[sqlite3.Connection]:
                 lock.release()
 
         def commit(self) -> None:
-            wrote = self.holds_write_lock
+            wrote = self.holds_write_lock and sync is not None
+            if wrote:
+                sync.begin_commit()
             try:
                 super().commit()
+            except BaseException:
+                if wrote:
+                    sync.abort_commit()
+                raise
             finally:
                 self.release_write_lock()
-            if wrote and sync is not None:
+            if wrote:
                 sync.wait_durable()
 
         def rollback(self) -> None:
