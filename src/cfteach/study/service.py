@@ -23,12 +23,13 @@ from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .build import browser_game
 from .controls import PRACTICE_CONTROLS, controls
+from .feedback import feedback_for
 from .games import ScoringError, public_game, replay
 from .layout import instance_layout
 from .live import LiveTeaching, path_states, responses_of
 from .models import ClientReport, ClosedLoopItem, Event, Session, TestResponse, aware, utcnow
 from .steps import ALLOWED, build_steps, demo_required_ms
-from .texts import EDUCATION, GENDERS, LIKERT
+from .texts import EDUCATION, GENDERS, LIKERT, design_facts
 from .versions import load_version
 
 _PLACEHOLDER = re.compile(r"^\{\{?%.*%\}?\}$|^$")
@@ -164,7 +165,8 @@ class StudyService:
         s = self.study_of(row)
         comp = s["completion"]
         base = {"status": row.status, "step_index": row.step_index, "n_steps": len(steps),
-                "participant_id": row.participant_id, "is_preview": row.is_preview}
+                "participant_id": row.participant_id, "is_preview": row.is_preview,
+                "design": design_facts(s)}
         if row.status in ("screened_out", "declined"):
             return {**base, "step": {"kind": row.status, "code": _code(comp, row.status),
                                      "redirect": _redirect(comp, row.status, row)}}
@@ -488,7 +490,9 @@ class StudyService:
                 ClosedLoopItem.position == item.about))
             game = self.live.game(study, dom, item.demo)
             answer = (failed.actions or "").split()
-            out["item"].update(optimal=optimal, answer=path_states(game, answer))
+            out["item"].update(optimal=optimal, answer=path_states(game, answer),
+                               explain=feedback_for(study, dom, game, answer,
+                                                    ds.action_names(item.demo)))
         return out
 
     def _practice(self, row: Session, p: schemas.PracticeAttempt) -> dict:

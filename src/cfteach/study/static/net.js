@@ -136,6 +136,10 @@ async function deliver(ev) {
     dropPending(ev.event_id);
     return r.data;
   }
+  if (r.status === 202) {  // stored; what comes next is still being prepared
+    dropPending(ev.event_id);
+    return { ...r.data, ok: true, preparing: true };
+  }
   if (r.status === 409 && r.data.error === "duplicate_event") {
     // Stored by an earlier try whose answer was lost: ask where the session is now.
     dropPending(ev.event_id);
