@@ -94,6 +94,14 @@ async function advance(stepIndex, type, payload) {
   return r;
 }
 
+// A button disabled while it works loses the keyboard focus to the page: give it back, so
+// a keyboard user goes on from where they were.
+function keepFocus(button) {
+  if (!document.activeElement || document.activeElement === document.body) {
+    button.focus({ preventScroll: true });
+  }
+}
+
 function activate(game) {
   keyHandler = game;
   gameKeys = new Set([...Object.keys(game.keymap), ...RESET_KEYS]);
@@ -355,6 +363,7 @@ const pages = {
       board.dataset.frame = "0";
       captionAt(d, 0);
       playBtn.textContent = done[k] > 0 ? "Replay" : "Play";
+      delete playBtn.dataset.state;
       prev.disabled = k === 0;
       next.disabled = done[k] < 1;
       next.textContent = k === s.demos.length - 1 ? "Continue" : "Next";
@@ -386,8 +395,9 @@ const pages = {
           done[kk] += 1;
           watchedAll = done.every((n) => n >= 1);
           playBtn.disabled = false;
-          playBtn.dataset.state = "done";
           show();
+          playBtn.dataset.state = "done";
+          keepFocus(playBtn);
           board.replaceChildren(drawGrid(d.layout, d.states[d.states.length - 1],
             { trail, label: `demonstration ${kk + 1}`, banner: "Demonstration complete" }));
           board.dataset.frame = String(d.states.length - 1);
@@ -402,7 +412,13 @@ const pages = {
         captionAt(d, f);
       }, s.step_ms);
     });
-    prev.addEventListener("click", () => { stop(false); playBtn.disabled = false; k -= 1; show(); });
+    prev.addEventListener("click", () => {
+      stop(false);
+      playBtn.disabled = false;
+      k -= 1;
+      show();
+      keepFocus(playBtn);  // "Previous" is disabled on the first demonstration
+    });
     next.addEventListener("click", () => {
       if (done[k] < 1) return;
       stop(false);
@@ -422,8 +438,8 @@ const pages = {
 
   // The closed_loop condition: one item at a time, decided by the server's teacher.
   closed_loop(st) {
-    closedLoopPage({ app, send, advance, activate, onCleanup: (f) => cleanup.push(f),
-      watched: (w) => { watchedAll = w; } }, st);
+    closedLoopPage({ app, send, advance, activate, keepFocus,
+      onCleanup: (f) => cleanup.push(f), watched: (w) => { watchedAll = w; } }, st);
   },
 
   survey(st) {

@@ -54,6 +54,7 @@ function playControl(ctx, st, it, button, run, onWatched) {
       button.dataset.state = "done";
       button.textContent = "Replay";
       onWatched();
+      ctx.keepFocus(button);
     });
   };
   button.addEventListener("click", start);
