@@ -6,7 +6,7 @@ import { Game } from "./game.js";
 import { drawGrid } from "./grid.js";
 import { flushPending, getToken, onTrouble, post, report, request, setToken } from "./net.js";
 import { preparing, waitWhilePreparing } from "./preparing.js";
-import { continueButton, count, design, h, keyLegend, likert, showError } from "./ui.js";
+import { continueButton, count, design, fill, h, keyLegend, likert, showError } from "./ui.js";
 
 const app = document.getElementById("app");
 // Keys and their actions come from the server, per game (`controls`: the domain's declared
@@ -134,7 +134,7 @@ const pages = {
       custom = h("section", { class: "consent", id: "consent-text" });
       custom.innerHTML = st.step.html;
     }
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Informed Consent Form" }),
       custom || h("section", { class: "consent" },
         h("h2", { text: "Procedures" }),
@@ -164,7 +164,7 @@ const pages = {
 
   instructions(st) {
     const d = design(st);
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Thank you for agreeing to participate in our study!" }),
       h("p", { text: "This study must be completed on a desktop or laptop on a supported " +
         `browser (Chrome, Firefox, or Safari). This task may take up to ${d.minutes} minutes.` }),
@@ -185,7 +185,7 @@ const pages = {
   free_play(st) {
     const s = st.step;
     const board = h("div", { id: "board" });
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Free play" }),
       h("p", { text: "Each game has locations, objects you can pick up and drop, objects " +
         "you can move through, and walls. Each game will have a task that you must complete " +
@@ -267,7 +267,7 @@ const pages = {
         info.textContent = `Attempts remaining: ${left()}`;
       }
     }
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Practice game" }),
       h("table", { class: "effects" },
         h("tr", {}, h("th", { text: "Action" }), h("th", { text: "Energy change" })),
@@ -285,7 +285,7 @@ const pages = {
   },
 
   post_practice(st) {
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Good job on completing the practice game!" }),
       h("p", { text: `Let's now head over to ${design(st).one ? "the main game" :
         `the ${count(design(st).games, "main game")}`} and begin the real study. ` +
@@ -308,7 +308,7 @@ const pages = {
       box.appendChild(drawGrid(ex.layout, ex.state, { label: "example configuration" }));
       examples.appendChild(box);
     }
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Welcome to a new game!" }),
       h("p", { text: "Here are a few configurations that you may see in this section." }),
       examples,
@@ -426,7 +426,7 @@ const pages = {
       else advance(st.step_index, "continue");
     });
     cleanup.push(() => stop(false));
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Demonstration of best strategy" }),
       h("p", { text: "Feel free to watch the demonstration as many times as you want (but at " +
         "least once)!" }),
@@ -463,7 +463,7 @@ const pages = {
       submit.disabled = false;
     }, { id: "next", type: "submit" });
     form.appendChild(submit);
-    app.replaceChildren(h("h1", { text: "Survey" }),
+    fill(app, h("h1", { text: "Survey" }),
       h("p", { text: "You have viewed all of the demonstrations for this game! Please " +
         "complete the survey below." }), form);
   },
@@ -491,7 +491,7 @@ const pages = {
         time_ms: Math.round(performance.now() - t0),
         confidence: +new FormData(form).get("confidence"), resets: game.resets });
     });
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Participant gameplay" }),
       h("p", { id: "trial", text: `Game ${s.trial} of ${s.n_trials}` }),
       h("p", { text: `Now it's your turn to play ${count(s.n_trials, "game")}! ` +
@@ -515,7 +515,7 @@ const pages = {
         `got ${s.correct} out of ${s.total} games correct.`
       : `You've completed all of the gameplays for this game! If you were curious, you got ` +
         `${s.correct} out of ${s.total} games correct. Let's head over to the next one!`;
-    app.replaceChildren(h("h1", { text: "Nice work!" }), h("p", { id: "score", text }),
+    fill(app, h("h1", { text: "Nice work!" }), h("p", { id: "score", text }),
       continueButton("Continue", () => advance(st.step_index, "continue"), { id: "next" }));
   },
 
@@ -543,7 +543,7 @@ const pages = {
       submit.disabled = false;
     }, { id: "next", type: "submit" });
     form.appendChild(submit);
-    app.replaceChildren(h("h1", { text: "Final questions" }),
+    fill(app, h("h1", { text: "Final questions" }),
       h("p", { text: `Congratulations on getting through ${design(st).one ? "the main game"
         : "all of the main games"}! Please ` +
         "answer the following questions, and then click 'Continue' for instructions on " +
@@ -569,7 +569,7 @@ const pages = {
 function finish(st, text) {
   keyHandler = null;
   const s = st.step;
-  app.replaceChildren(h("h1", { text: st.step.kind === "complete" ? "Thank you!" : "Study ended" }),
+  fill(app, h("h1", { text: st.step.kind === "complete" ? "Thank you!" : "Study ended" }),
     h("p", { text }),
     h("p", {}, "Your completion code is ", h("strong", { id: "code", text: s.code }), "."),
     s.redirect ? h("p", {}, "You will now be taken back to Prolific. If nothing happens, ",
@@ -614,7 +614,7 @@ async function refresh() {
 // it (no stored token, another Prolific SESSION_ID): the server sent no token.
 function showElsewhere(detail) {
   app.dataset.step = "elsewhere";
-  app.replaceChildren(h("h1", { text: "Study already in progress" }), h("p", { id: "elsewhere",
+  fill(app, h("h1", { text: "Study already in progress" }), h("p", { id: "elsewhere",
     text: detail || "This study is already in progress in another browser." }));
 }
 
@@ -622,7 +622,7 @@ function showElsewhere(detail) {
 // it and say so plainly.
 async function cannotGo(path, r) {
   keyHandler = null;
-  app.replaceChildren(h("h1", { text: "The study cannot continue" }));
+  fill(app, h("h1", { text: "The study cannot continue" }));
   showError(plainMessage(r.data));
   await report(path, r);
 }

@@ -2,7 +2,7 @@
 // feedback on a wrong test answer), decided by the server's teacher.
 import { drawGrid } from "./grid.js";
 import { Game } from "./game.js";
-import { continueButton, h, keyLegend } from "./ui.js";
+import { continueButton, fill, h, keyLegend } from "./ui.js";
 
 // Animate `paths` (one list of states per board) side by side; `onDone` at the end.
 // Returns a function that stops it.
@@ -75,7 +75,7 @@ function demonstration(ctx, st, it, head, board, done) {
     board.dataset.watched = "true";
     next.disabled = false;
   });
-  ctx.app.replaceChildren(h("h1", { text: it.purpose === "remedial"
+  fill(ctx.app, h("h1", { text: it.purpose === "remedial"
     ? "Another demonstration of the best strategy" : "Demonstration of best strategy" }),
   head, h("p", { text: `Task: ${s.info.task}` }),
   h("p", { text: "Watch Chip's demonstration to the end (as many times as you like), " +
@@ -93,7 +93,7 @@ function test(ctx, st, it, head, board, done) {
   const game = new Game(board, it.layout, it.game, { controls: s.info.controls,
     label: "test game", onEnd: () => { submit.disabled = false; },
     onMove: (g) => { submit.disabled = !g.ended; } });
-  ctx.app.replaceChildren(h("h1", { text: "Your turn" }), head,
+  fill(ctx.app, h("h1", { text: "Your turn" }), head,
     h("p", { text: "Show how you would complete this game's task while minimizing " +
       "Chip's energy loss. You may reset at any time before the game ends." }),
     h("p", { text: `Task: ${s.info.task}` }),
@@ -119,7 +119,7 @@ function feedback(ctx, st, it, head, done) {
     `${who}: `, h("strong", { text: `${text} energy` }));
   const where = x && x.part_step
     ? `The routes part at step ${x.part_step}: the dashed square marks where.` : null;
-  ctx.app.replaceChildren(h("h1", { text: "Compare with Chip" }), head,
+  fill(ctx.app, h("h1", { text: "Compare with Chip" }), head,
     h("p", { id: "feedback-text", text: "That was not the best strategy: your answer " +
       "(left) and Chip's best answer (right) replay side by side, so you can see where " +
       "they differ." }),

@@ -64,3 +64,9 @@ export function design(st) {
     theGames: games === 1 ? "the game" : `the ${count(games, "game")}`,
     one: games === 1 };
 }
+
+/** `parent.replaceChildren(...)` without the nulls of optional parts (the DOM would show a
+ * null as the text "null"). */
+export function fill(parent, ...children) {
+  parent.replaceChildren(...children.flat().filter((c) => c !== null && c !== undefined));
+}
