@@ -99,7 +99,7 @@ def _sentence(domain: str, diffs: list[dict], total: float) -> str:
     phrase = feature_phrase(domain, top["feature"])
     out = f"Your route {phrase} {_times(n, more)} than Chip's: {energy_text(top['energy'])} energy"
     if len(costly) > 1 or abs(top["energy"] - total) > 1e-9:
-        out += f" ({energy_text(total)} in all)"
+        out += f" ({energy_text(total)} energy in all)"
     return out + "."
 
 
