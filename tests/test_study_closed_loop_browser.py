@@ -1,7 +1,9 @@
 """Chromium plays a whole closed-loop session with the keyboard: it answers the first
-diagnostic test wrongly on purpose, sees the feedback page (its answer beside Chip's), then
-the next demonstration; the export then replays offline, through `ClosedLoopTeacher`, to
-the very items the page showed."""
+diagnostic test wrongly on purpose, sees the feedback page (its answer beside Chip's, both
+energies, where they part and what the difference cost, checked against a replay with the
+domain's own `step`), then the next demonstration; the export then replays offline,
+through `ClosedLoopTeacher`, to the very items the page showed. Every item kind is checked
+with axe-core."""
 
 from __future__ import annotations
 
@@ -15,9 +17,13 @@ from sqlalchemy import select
 import test_study_browser
 from cfteach.closedloop import ClosedLoopTeacher
 from cfteach.study.build import init_study, preview_sources
+from cfteach.study.feedback import MINUS
 from cfteach.study.games import best_path, replay
+from cfteach.study.layout import instance_layout
 from cfteach.study.live import pool_from_cell, settings_of
 from cfteach.study.models import ClosedLoopItem
+from cfteach.study.texts import FEATURE_PHRASES
+from test_study_a11y_browser import axe_problems
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 browser = test_study_browser.browser
@@ -68,10 +74,13 @@ class ClosedLoopParticipant(test_study_browser.Participant):
     def _teaching(self) -> None:
         page = self.page
         wrong_done = False
+        self.axe: dict[str, list[str]] = {}
         while self.step() == "closed_loop":
             kind = page.get_attribute("#cl-item", "data-kind")
             pos = int(page.get_attribute("#cl-item", "data-position"))
             self.shown.append((pos, kind))
+            if kind not in self.axe:
+                self.axe[kind] = axe_problems(page)
             if kind == "demonstration":
                 assert page.is_disabled("#next")
                 page.click("#play")
@@ -104,12 +113,64 @@ class ClosedLoopParticipant(test_study_browser.Participant):
                 assert (pos - 1, "test") in self.shown
                 assert page.is_visible("#answer-board") and page.is_visible("#optimal-board")
                 assert "Chip's best answer" in page.text_content("#feedback-text")
+                _check_feedback(self)
                 self.feedback_seen = pos
             page.click("#next:not([disabled])")
             page.wait_for_function(
                 "([p]) => document.querySelector('main').dataset.step !== 'closed_loop' || "
                 "Number(document.querySelector('#cl-item')?.dataset.position) === p + 1",
                 arg=[pos])
+
+
+def _energy(text: str) -> float:
+    """'Your answer: −3.5 energy' -> -3.5"""
+    return float(text.split(": ")[1].split(" ")[0].replace(MINUS, "-"))
+
+
+def _stepped(inst, start, actions: list[str], weights) -> tuple[float, list, list]:  # noqa: ANN001
+    """Reward, feature counts and states of `actions`, stepped with the domain itself."""
+    names = list(inst.domain.actions)
+    s, states, mu = start, [start], [0.0] * len(weights)
+    for a in actions:
+        s, phi, _ = inst.step(s, names.index(a))
+        mu = [m + float(f) for m, f in zip(mu, phi, strict=True)]
+        states.append(s)
+    return sum(w * m for w, m in zip(weights, mu, strict=True)), mu, states
+
+
+def _check_feedback(self: ClosedLoopParticipant) -> None:
+    """The feedback page against an independent replay of both answers."""
+    page = self.page
+    svc = self.app.state.service
+    item = self._pending()
+    ds = svc.live.pool(svc.study, "skateboard").ds
+    inst, start = ds.instance(item.demo), ds.start_state(item.demo)
+    info = svc.study["domain_info"]["skateboard"]
+    game = svc.live.game(svc.study, "skateboard", item.demo)
+    best = best_path(game, info["weights"])
+    ra, mua, sa = _stepped(inst, start, self.wrong[1], info["weights"])
+    rb, mub, sb = _stepped(inst, start, best, info["weights"])
+    layout = instance_layout("skateboard", inst)
+    page.wait_for_selector("#play[data-state='done']")  # the replay starts by itself
+    assert _energy(page.text_content("#answer-energy")) == round(ra, 2)
+    assert _energy(page.text_content("#optimal-energy")) == round(rb, 2)
+    # where the routes part: the dashed square on both boards, at Chip's cell before it
+    part = next(t for t in range(min(len(sa), len(sb))) if sa[t] != sb[t])
+    cell = inst.state_to_json(sa[part - 1])["agent"]
+    assert f"step {part}" in page.text_content("#feedback-part")
+    for board in ("#answer-board", "#optimal-board"):
+        marks = page.eval_on_selector_all(f"{board} [data-kind='part']", "l => l.length")
+        assert marks == 1
+        x, y = page.eval_on_selector(f"{board} [data-kind='part']",
+                                     "e => [Number(e.getAttribute('x')), "
+                                     "Number(e.getAttribute('y'))]")
+        assert (x, y) == ((cell[0] - 1) * 64 + 3, (layout["height"] - cell[1]) * 64 + 3)
+    # the sentence names the costliest feature and what it cost
+    costs = [w * (a - b) for w, a, b in zip(info["weights"], mua, mub, strict=True)]
+    k = min(range(len(costs)), key=costs.__getitem__)
+    why = page.text_content("#feedback-why")
+    assert FEATURE_PHRASES["skateboard"][info["feature_names"][k]] in why, why
+    assert f"{round(costs[k], 2):g}".replace("-", MINUS) in why, why
 
 
 def test_browser_closed_loop_session(browser, cl_only_study: Path,  # noqa: ANN001
@@ -126,6 +187,8 @@ def test_browser_closed_loop_session(browser, cl_only_study: Path,  # noqa: ANN0
     who, out, _db = test_study_browser._run(browser, cl_only_study, tmp_path,
                                             make=ClosedLoopParticipant)
     kinds = [k for _, k in who.shown]
+    assert set(who.axe) == {"demonstration", "test", "feedback"}
+    assert {k: v for k, v in who.axe.items() if v} == {}
     assert [p for p, _ in who.shown] == list(range(len(who.shown)))
     wrong_pos, wrong_moves = who.wrong
     assert who.reloaded == wrong_pos

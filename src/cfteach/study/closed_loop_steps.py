@@ -21,6 +21,7 @@ from cfteach.mdp.scoring import is_optimal
 from . import schemas
 from .decisions import result_or_none
 from .errors import ApiError
+from .feedback import feedback_for
 from .games import ScoringError, public_game, replay
 from .layout import instance_layout
 from .live import path_states, responses_of
@@ -201,5 +202,7 @@ class ClosedLoopSteps:
             answer = (failed.actions or "").split() if failed else []
             out["item"].update(optimal=optimal, answer=path_states(game, answer),
                                n_actions=max(len(optimal), len(answer) + 1) - 1,
-                               completed=completed)
+                               completed=completed,
+                               explain=feedback_for(study, dom, game, answer,
+                                                    ds.action_names(item.demo)))
         return out

@@ -16,7 +16,7 @@ from .controls import PRACTICE_CONTROLS, controls
 from .errors import ApiError
 from .models import Event, Session, TestResponse, aware, utcnow
 from .steps import demo_required_ms
-from .texts import EDUCATION, GENDERS, LIKERT
+from .texts import EDUCATION, GENDERS, LIKERT, design_facts
 
 
 class PageViews:
@@ -27,7 +27,8 @@ class PageViews:
         s = self.study_of(row)
         comp = s["completion"]
         base = {"status": row.status, "step_index": row.step_index, "n_steps": len(steps),
-                "participant_id": row.participant_id, "is_preview": row.is_preview}
+                "participant_id": row.participant_id, "is_preview": row.is_preview,
+                "design": design_facts(s)}
         if row.status in ("screened_out", "declined"):
             return {**base, "step": {"kind": row.status, "code": _code(comp, row.status),
                                      "redirect": _redirect(comp, row.status, row)}}

@@ -1,8 +1,12 @@
 // Participant UI: fetches the current step from the server, renders it, posts events.
 // All study logic (order, assignment, scoring, gating) lives on the server; a reload simply
 // asks the server again and lands on the same page.
+import { closedLoopPage } from "./closedloop.js";
+import { Game } from "./game.js";
 import { drawGrid } from "./grid.js";
 import { flushPending, getToken, onTrouble, post, report, request, setToken } from "./net.js";
+import { preparing, waitWhilePreparing } from "./preparing.js";
+import { continueButton, count, design, fill, h, keyLegend, likert, showError } from "./ui.js";
 
 const app = document.getElementById("app");
 // Keys and their actions come from the server, per game (`controls`: the domain's declared
@@ -12,8 +16,9 @@ const RESET_KEYS = ["r", "R"];
 let gameKeys = new Set();
 const TEXT_INPUTS = new Set(["text", "number", "email", "search", "tel", "url", "password"]);
 setToken(sessionStorage.getItem("cfteach-token"));
-let keyHandler = null;
+let keyHandler = null;  // the game that takes the keys (a Game), or null
 let cleanup = [];
+let watchedAll = false;  // every demonstration on this page has played to its end here
 
 // True where a key press types text (a comment box, the age field, a drop-down list).
 function typesText(t) {
@@ -21,16 +26,17 @@ function typesText(t) {
     (t instanceof HTMLInputElement && TEXT_INPUTS.has(t.type)) || Boolean(t?.isContentEditable);
 }
 
-// While a game is on screen its keys always go to the game, even when a radio button (the
-// confidence item) or a button has the focus: otherwise the arrows would change the answer
-// instead of moving Chip. Only text fields keep their keys. Arrow keys and space never
-// scroll the page.
+// While a game on screen can still move, its keys go to the game, even when a radio button
+// (the confidence item) or a button has the focus: otherwise the arrows would change the
+// answer instead of moving Chip. Once a test game has ended it takes no key, and the arrows
+// choose among the radio buttons again (keyboard-only participants answer the confidence
+// item so). Text fields always keep their keys. Arrow keys and space never scroll the page.
 window.addEventListener("keydown", (e) => {
   if (typesText(e.target)) return;
   const plain = !e.ctrlKey && !e.metaKey && !e.altKey;  // Ctrl+R still reloads
-  if (keyHandler && plain && gameKeys.has(e.key)) {
+  if (keyHandler && keyHandler.listening && plain && gameKeys.has(e.key)) {
     e.preventDefault();
-    if (!e.repeat) keyHandler(e);
+    if (!e.repeat) keyHandler.press(e);
     return;
   }
   const control = e.target instanceof HTMLInputElement || e.target instanceof HTMLButtonElement;
@@ -38,22 +44,6 @@ window.addEventListener("keydown", (e) => {
     e.preventDefault();
   }
 }, { passive: false });
-
-function h(tag, attrs = {}, ...children) {
-  const e = document.createElement(tag);
-  for (const [k, v] of Object.entries(attrs)) {
-    if (k === "onclick") e.addEventListener("click", v);
-    else if (k === "onchange") e.addEventListener("change", v);
-    else if (k === "text") e.textContent = v;
-    else if (v === true) e.setAttribute(k, "");
-    else if (v !== false && v !== null && v !== undefined) e.setAttribute(k, v);
-  }
-  for (const c of children.flat()) {
-    if (c === null || c === undefined) continue;
-    e.appendChild(typeof c === "string" ? document.createTextNode(c) : c);
-  }
-  return e;
-}
 
 // What the participant reads when the server refused a request for good. The server's own
 // message (which may quote raw data) goes only into the report the researcher sees.
@@ -64,7 +54,12 @@ function plainMessage(r) {
       return "This page was out of date (is the study open in another tab?). Here is " +
         "where you are in the study now.";
     case "demos_unwatched":
-      return "Please watch every demonstration to the end before continuing.";
+      // The page lets nobody continue before a play has ended, so a refusal after one is
+      // the network's fault (a play whose events arrived late): never blame the participant.
+      return watchedAll
+        ? "The server could not confirm your viewing (the connection may have been " +
+          "interrupted). Please play the demonstration once more; sorry for the trouble."
+        : "Please watch every demonstration to the end before continuing.";
     case "no_session":
       return "We could not find your study session. Please open the study again from " +
         "its link on Prolific.";
@@ -94,104 +89,21 @@ async function send(stepIndex, type, payload) {
 
 async function advance(stepIndex, type, payload) {
   const r = await send(stepIndex, type, payload);
-  if (r.ok) render(r.state);
+  if (r.ok && r.state) render(r.state);
+  else if (r.ok) await refresh();  // stored, the next page not ready yet (202 Accepted)
   return r;
 }
 
-function showError(msg) {
-  const box = document.getElementById("error") || app.appendChild(h("p", { id: "error",
-    class: "error", role: "alert" }));
-  box.textContent = msg;
-}
-
-function continueButton(label, onclick, extra = {}) {
-  return h("button", { class: "primary", onclick, ...extra }, label);
-}
-
-function keyLegend(controls) {
-  return h("table", { class: "keys" }, h("tr", {}, h("th", { text: "Key" }),
-    h("th", { text: "Action" })),
-  controls.map((c) => h("tr", { "data-action": c.action }, h("td", { text: c.key_label }),
-    h("td", { text: c.label }))),
-  h("tr", {}, h("td", { text: "r" }), h("td", { text: "reset simulation" })));
-}
-
-// KeyboardEvent.key -> action name, for the controls of one game.
-function keyMap(controls) {
-  const map = {};
-  for (const c of controls) {
-    map[c.key] = c.action;
-    if (c.key.length === 1) {
-      map[c.key.toLowerCase()] = c.action;
-      map[c.key.toUpperCase()] = c.action;
-    }
-  }
-  return map;
-}
-
-// ---------------------------------------------------------------------------------------
-// A playable game from the server's transition table.
-class Game {
-  constructor(host, layout, game, { controls, energy = null, onMove = null, onEnd = null,
-    resetAfterEnd = false, label = "game" }) {
-    Object.assign(this, { host, layout, game, controls, energy, onMove, onEnd, resetAfterEnd,
-      label });
-    this.keymap = keyMap(controls);
-    this.host.classList.add("board");
-    this.host.setAttribute("tabindex", "0");
-    this.reset(false);
-    this.resets = 0;
-  }
-
-  reset(count = true) {
-    this.s = 0;
-    this.moves = [];
-    this.ended = false;
-    this.banner = null;  // what the board says once the game has ended (default below)
-    this.value = this.energy ? this.energy.start : null;
-    this.trail = [this.game.states[0].agent];
-    if (count) this.resets += 1;
-    this.draw();
-    if (this.onMove) this.onMove(this);
-  }
-
-  press(e) {
-    if (e.key === "r" || e.key === "R") {
-      if (!this.ended || this.resetAfterEnd) this.reset();
-      return;
-    }
-    const action = this.keymap[e.key];
-    if (!action || this.ended) return;
-    if (this.energy && this.value <= 0) return;
-    const a = this.game.actions.indexOf(action);
-    if (a < 0) return;
-    const nxt = this.game.next[this.s][a];
-    if (nxt === this.s) return; // blocked move or no-op: ignored and not recorded
-    if (this.energy) {
-      const phi = this.game.phi[this.s][a];
-      this.value += phi.reduce((t, f, i) => t + f * this.energy.weights[i], 0);
-    }
-    this.s = nxt;
-    this.moves.push(action);
-    const st = this.game.states[nxt];
-    this.trail.push(st.agent);
-    this.ended = this.game.terminal[nxt];
-    this.draw();
-    if (this.onMove) this.onMove(this);
-    if (this.ended && this.onEnd) this.onEnd(this);
-  }
-
-  draw() {
-    const st = this.game.states[this.s];
-    this.host.replaceChildren(drawGrid(this.layout, st, { trail: this.trail, label: this.label,
-      banner: this.ended ? (this.banner || { lines: ["Game completed!"] }) : null }));
-    this.host.dataset.moves = this.moves.join(" ");
-    this.host.dataset.ended = String(this.ended);
+// A button disabled while it works loses the keyboard focus to the page: give it back, so
+// a keyboard user goes on from where they were.
+function keepFocus(button) {
+  if (!document.activeElement || document.activeElement === document.body) {
+    button.focus({ preventScroll: true });
   }
 }
 
 function activate(game) {
-  keyHandler = (e) => game.press(e);
+  keyHandler = game;
   gameKeys = new Set([...Object.keys(game.keymap), ...RESET_KEYS]);
   game.host.addEventListener("click", () => game.host.focus());
   game.host.focus({ preventScroll: true });
@@ -203,6 +115,7 @@ function activate(game) {
 const pages = {
   consent(st) {
     const step = st.step_index;
+    const d = design(st);
     const boxes = [["adult", "I am 18 years old or older:"],
       ["read", "I have read and understand the information above:"],
       ["agree", "I want to participate in this research:"]];
@@ -221,12 +134,14 @@ const pages = {
       custom = h("section", { class: "consent", id: "consent-text" });
       custom.innerHTML = st.step.html;
     }
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Informed Consent Form" }),
       custom || h("section", { class: "consent" },
         h("h2", { text: "Procedures" }),
-        h("p", { text: "You will watch short demonstrations of a robot playing three simple " +
-          "games and then play the games yourself. This study may take up to 25 minutes." }),
+        h("p", { text: "You will watch short demonstrations of a robot playing " +
+          `${d.one ? "a simple game" : `${count(d.games, "simple game")}`} and then play ` +
+          `${d.one ? "it" : "the games"} yourself. This study may take up to ${d.minutes} ` +
+          "minutes." }),
         h("h2", { text: "Participation Requirements" }),
         h("p", { text: "You must be 18 or older and use a desktop or laptop computer." }),
         h("h2", { text: "Risks and Benefits" }),
@@ -248,14 +163,16 @@ const pages = {
   },
 
   instructions(st) {
-    app.replaceChildren(
+    const d = design(st);
+    fill(app,
       h("h1", { text: "Thank you for agreeing to participate in our study!" }),
       h("p", { text: "This study must be completed on a desktop or laptop on a supported " +
-        "browser (Chrome, Firefox, or Safari). This task may take up to twenty-five minutes." }),
+        `browser (Chrome, Firefox, or Safari). This task may take up to ${d.minutes} minutes.` }),
       h("p", { text: "If the page is reloaded by accident, the study continues where you " +
         "left off. Finally, directions for compensation will be presented upon completion." }),
-      h("p", { text: "Chip, the blue triangle, has learned to play the three games below " +
-        "perfectly! Chip will teach you the best strategy for each game through a series of " +
+      h("p", { text: `Chip, the blue triangle, has learned to play ${d.theGames} of this ` +
+        `study perfectly! Chip will teach you the best strategy for ${d.one ? "the" : "each"} ` +
+        "game through a series of " +
         "demonstrations. Following each set of demonstrations, you will show us what you " +
         "learned by playing the game yourself using your keyboard. Before we dive in, let's " +
         "head over to a practice game to get familiar with the keyboard controls and how the " +
@@ -268,7 +185,7 @@ const pages = {
   free_play(st) {
     const s = st.step;
     const board = h("div", { id: "board" });
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Free play" }),
       h("p", { text: "Each game has locations, objects you can pick up and drop, objects " +
         "you can move through, and walls. Each game will have a task that you must complete " +
@@ -350,7 +267,7 @@ const pages = {
         info.textContent = `Attempts remaining: ${left()}`;
       }
     }
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Practice game" }),
       h("table", { class: "effects" },
         h("tr", {}, h("th", { text: "Action" }), h("th", { text: "Energy change" })),
@@ -368,9 +285,10 @@ const pages = {
   },
 
   post_practice(st) {
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Good job on completing the practice game!" }),
-      h("p", { text: "Let's now head over to the three main games and begin the real study. " +
+      h("p", { text: `Let's now head over to ${design(st).one ? "the main game" :
+        `the ${count(design(st).games, "main game")}`} and begin the real study. ` +
         "In these games, you will not be told how each action changes Chip's energy level." }),
       h("table", { class: "effects" },
         h("tr", {}, h("th", { text: "Action" }), h("th", { text: "Energy change" })),
@@ -390,7 +308,7 @@ const pages = {
       box.appendChild(drawGrid(ex.layout, ex.state, { label: "example configuration" }));
       examples.appendChild(box);
     }
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Welcome to a new game!" }),
       h("p", { text: "Here are a few configurations that you may see in this section." }),
       examples,
@@ -408,6 +326,7 @@ const pages = {
   demos(st) {
     const s = st.step;
     const done = s.completed.slice();
+    watchedAll = done.every((n) => n >= 1);
     let k = Math.max(0, done.findIndex((n) => n < 1));
     if (done.every((n) => n >= 1)) k = s.demos.length - 1;
     let timer = null, playing = null;
@@ -444,6 +363,7 @@ const pages = {
       board.dataset.frame = "0";
       captionAt(d, 0);
       playBtn.textContent = done[k] > 0 ? "Replay" : "Play";
+      delete playBtn.dataset.state;
       prev.disabled = k === 0;
       next.disabled = done[k] < 1;
       next.textContent = k === s.demos.length - 1 ? "Continue" : "Next";
@@ -452,22 +372,32 @@ const pages = {
           "on the 'Previous' button below) if you wish! (You will be asked about the " +
           "informativeness and difficulty of the demonstrations on the following page.)" : "";
     };
-    playBtn.addEventListener("click", () => {
+    playBtn.addEventListener("click", async () => {
       stop(false);
       const d = s.demos[k];
+      // The replay starts once the server has stored its start: a start held up by the
+      // network would otherwise be timed by the server as a play too short to count.
+      playBtn.disabled = prev.disabled = next.disabled = true;
+      playBtn.dataset.state = "starting";
+      const r = await send(st.step_index, "demo_play_start", { demo_index: k });
+      if (!r.ok || !playBtn.isConnected) return;  // refused: the page has been redrawn
+      playBtn.dataset.state = "playing";
+      prev.disabled = k === 0;
+      next.disabled = done[k] < 1;
       playing = { k, t0: performance.now() };
-      send(st.step_index, "demo_play_start", { demo_index: k });
       let f = 0;
       const trail = [d.states[0].agent];
-      playBtn.disabled = true;
       timer = setInterval(() => {
         f += 1;
         if (f >= d.states.length) {
           const kk = k;
           stop(true);
           done[kk] += 1;
+          watchedAll = done.every((n) => n >= 1);
           playBtn.disabled = false;
           show();
+          playBtn.dataset.state = "done";
+          keepFocus(playBtn);
           board.replaceChildren(drawGrid(d.layout, d.states[d.states.length - 1],
             { trail, label: `demonstration ${kk + 1}`, banner: "Demonstration complete" }));
           board.dataset.frame = String(d.states.length - 1);
@@ -482,7 +412,13 @@ const pages = {
         captionAt(d, f);
       }, s.step_ms);
     });
-    prev.addEventListener("click", () => { stop(false); playBtn.disabled = false; k -= 1; show(); });
+    prev.addEventListener("click", () => {
+      stop(false);
+      playBtn.disabled = false;
+      k -= 1;
+      show();
+      keepFocus(playBtn);  // "Previous" is disabled on the first demonstration
+    });
     next.addEventListener("click", () => {
       if (done[k] < 1) return;
       stop(false);
@@ -490,7 +426,7 @@ const pages = {
       else advance(st.step_index, "continue");
     });
     cleanup.push(() => stop(false));
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Demonstration of best strategy" }),
       h("p", { text: "Feel free to watch the demonstration as many times as you want (but at " +
         "least once)!" }),
@@ -502,107 +438,8 @@ const pages = {
 
   // The closed_loop condition: one item at a time, decided by the server's teacher.
   closed_loop(st) {
-    const s = st.step;
-    const it = s.item;
-    const head = h("p", { id: "cl-item", "data-kind": it.kind, "data-position": String(it.position),
-      "data-purpose": it.purpose });
-    const board = h("div", { id: "board" });
-    const done = (extra = {}) => advance(st.step_index, "item_done", { item: it.position, ...extra });
-    let timer = null;
-    const stopTimer = () => { if (timer) clearInterval(timer); timer = null; };
-    cleanup.push(stopTimer);
-    // Animate `paths` (one list of states per board) side by side, `onDone` at the end.
-    const animate = (boards, paths, labels, banners, onDone) => {
-      stopTimer();
-      let f = 0;
-      const n = Math.max(...paths.map((p) => p.length));
-      const frame = () => boards.forEach((b, i) => {
-        const p = paths[i];
-        const j = Math.min(f, p.length - 1);
-        b.replaceChildren(drawGrid(it.layout, p[j], { trail: p.slice(0, j + 1).map((x) => x.agent),
-          label: labels[i], banner: f >= n - 1 ? banners[i] : null }));
-        b.dataset.frame = String(j);
-      });
-      frame();
-      timer = setInterval(() => {
-        f += 1;
-        frame();
-        if (f >= n - 1) { stopTimer(); onDone(); }
-      }, s.step_ms);
-    };
-    if (it.kind === "demonstration") {
-      let watched = it.completed;
-      let playing = null;
-      const playBtn = h("button", { id: "play", class: "primary" }, watched ? "Replay" : "Play");
-      const next = continueButton("Continue", () => { stopPlay(false); done(); },
-        { id: "next", disabled: !watched });
-      const stopPlay = (completed) => {
-        stopTimer();
-        if (playing) {
-          send(st.step_index, "demo_play_end", { demo_index: it.position, completed,
-            watch_ms: Math.round(performance.now() - playing) });
-          playing = null;
-        }
-      };
-      board.replaceChildren(drawGrid(it.layout, it.states[0], { trail: [it.states[0].agent],
-        label: "demonstration" }));
-      playBtn.addEventListener("click", () => {
-        stopPlay(false);
-        playing = performance.now();
-        send(st.step_index, "demo_play_start", { demo_index: it.position });
-        playBtn.disabled = true;
-        animate([board], [it.states], ["demonstration"], ["Demonstration complete"], () => {
-          stopPlay(true);
-          watched += 1;
-          board.dataset.watched = "true";
-          playBtn.disabled = false;
-          playBtn.textContent = "Replay";
-          next.disabled = false;
-        });
-      });
-      cleanup.push(() => stopPlay(false));
-      app.replaceChildren(h("h1", { text: it.purpose === "remedial"
-        ? "Another demonstration of the best strategy" : "Demonstration of best strategy" }),
-      head, h("p", { text: `Task: ${s.info.task}` }),
-      h("p", { text: "Watch Chip's demonstration to the end (as many times as you like), " +
-        "then continue." }), board, h("div", { class: "controls" }, playBtn, " ", next));
-    } else if (it.kind === "test") {
-      const t0 = performance.now() - (it.elapsed_ms || 0);
-      const submit = continueButton("Submit", () => {
-        if (!game.ended) return;
-        submit.disabled = true;
-        done({ actions: game.moves, time_ms: Math.round(performance.now() - t0) });
-      }, { id: "next", disabled: true });
-      const game = new Game(board, it.layout, it.game, { controls: s.info.controls, label: "test game",
-        onEnd: () => { submit.disabled = false; },
-        onMove: (g) => { submit.disabled = !g.ended; } });
-      app.replaceChildren(h("h1", { text: "Your turn" }), head,
-        h("p", { text: "Show how you would complete this game's task while minimizing " +
-          "Chip's energy loss. You may reset at any time before the game ends." }),
-        h("p", { text: `Task: ${s.info.task}` }),
-        h("div", { class: "play" }, board, keyLegend(s.info.controls)), submit);
-      activate(game);
-    } else {  // feedback: the participant's answer beside the best one, animated together
-      const mine = h("div", { id: "answer-board", class: "board" });
-      const best = h("div", { id: "optimal-board", class: "board" });
-      const replayBtn = h("button", { id: "play" }, "Replay");
-      const next = continueButton("Continue", () => done(), { id: "next", disabled: true });
-      const run = () => {
-        replayBtn.disabled = true;
-        animate([mine, best], [it.answer, it.optimal], ["your answer", "Chip's best answer"],
-          [null, null], () => { replayBtn.disabled = false; next.disabled = false; });
-      };
-      replayBtn.addEventListener("click", run);
-      app.replaceChildren(h("h1", { text: "Compare with Chip" }), head,
-        h("p", { id: "feedback-text", text: "That was not the best strategy: your answer " +
-          "(left) and Chip's best answer (right) replay side by side, so you can see where " +
-          "they differ." }),
-        h("div", { class: "play side-by-side" },
-          h("figure", {}, mine, h("figcaption", { text: "Your answer" })),
-          h("figure", {}, best, h("figcaption", { text: "Chip's best answer" }))),
-        h("div", { class: "controls" }, replayBtn, " ", next));
-      run();
-    }
+    closedLoopPage({ app, send, advance, activate, keepFocus,
+      onCleanup: (f) => cleanup.push(f), watched: (w) => { watchedAll = w; } }, st);
   },
 
   survey(st) {
@@ -626,7 +463,7 @@ const pages = {
       submit.disabled = false;
     }, { id: "next", type: "submit" });
     form.appendChild(submit);
-    app.replaceChildren(h("h1", { text: "Survey" }),
+    fill(app, h("h1", { text: "Survey" }),
       h("p", { text: "You have viewed all of the demonstrations for this game! Please " +
         "complete the survey below." }), form);
   },
@@ -654,11 +491,11 @@ const pages = {
         time_ms: Math.round(performance.now() - t0),
         confidence: +new FormData(form).get("confidence"), resets: game.resets });
     });
-    app.replaceChildren(
+    fill(app,
       h("h1", { text: "Participant gameplay" }),
       h("p", { id: "trial", text: `Game ${s.trial} of ${s.n_trials}` }),
-      h("p", { text: `Now it's your turn to play ${s.n_trials === 6 ? "six" : s.n_trials} ` +
-        "games! Please demonstrate how you would " +
+      h("p", { text: `Now it's your turn to play ${count(s.n_trials, "game")}! ` +
+        "Please demonstrate how you would " +
         "complete this game's task while minimizing Chip's energy loss. You may reset at any " +
         "time before the game ends if you think you've made a mistake." }),
       h("p", { text: `Task: ${s.info.task}` }),
@@ -673,11 +510,12 @@ const pages = {
   feedback(st) {
     const s = st.step;
     const text = s.last
-      ? `You've completed all of the gameplays for the final game! If you were curious, you ` +
+      ? `You've completed all of the gameplays for the ${design(st).one ? "" : "final "}` +
+        "game! If you were curious, you " +
         `got ${s.correct} out of ${s.total} games correct.`
       : `You've completed all of the gameplays for this game! If you were curious, you got ` +
         `${s.correct} out of ${s.total} games correct. Let's head over to the next one!`;
-    app.replaceChildren(h("h1", { text: "Nice work!" }), h("p", { id: "score", text }),
+    fill(app, h("h1", { text: "Nice work!" }), h("p", { id: "score", text }),
       continueButton("Continue", () => advance(st.step_index, "continue"), { id: "next" }));
   },
 
@@ -705,8 +543,9 @@ const pages = {
       submit.disabled = false;
     }, { id: "next", type: "submit" });
     form.appendChild(submit);
-    app.replaceChildren(h("h1", { text: "Final questions" }),
-      h("p", { text: "Congratulations on getting through all of the main games! Please " +
+    fill(app, h("h1", { text: "Final questions" }),
+      h("p", { text: `Congratulations on getting through ${design(st).one ? "the main game"
+        : "all of the main games"}! Please ` +
         "answer the following questions, and then click 'Continue' for instructions on " +
         "compensation." }), form);
   },
@@ -730,7 +569,7 @@ const pages = {
 function finish(st, text) {
   keyHandler = null;
   const s = st.step;
-  app.replaceChildren(h("h1", { text: st.step.kind === "complete" ? "Thank you!" : "Study ended" }),
+  fill(app, h("h1", { text: st.step.kind === "complete" ? "Thank you!" : "Study ended" }),
     h("p", { text }),
     h("p", {}, "Your completion code is ", h("strong", { id: "code", text: s.code }), "."),
     s.redirect ? h("p", {}, "You will now be taken back to Prolific. If nothing happens, ",
@@ -739,17 +578,21 @@ function finish(st, text) {
   if (s.redirect) setTimeout(() => { window.location.href = s.redirect; }, 1500);
 }
 
-function likert(key, item) {
-  return h("fieldset", { class: "likert", "data-item": key },
-    h("legend", { text: item.question }),
-    item.options.map((o, i) => h("label", { class: "opt" },
-      h("input", { type: "radio", name: key, value: String(i + 1), required: true }), ` ${o}`)));
-}
+let renders = 0;  // a newer render makes an older preparing-poll drop its answer
 
 function render(st) {
   for (const f of cleanup) f();
   cleanup = [];
   keyHandler = null;
+  const mine = ++renders;
+  if (preparing(st)) {
+    waitWhilePreparing(app, request, st).then(async (r) => {
+      if (mine !== renders) return;
+      if (r.status === 200) render(r.data);
+      else await cannotGo("/api/state", r);
+    });
+    return;
+  }
   const bar = document.getElementById("progress-bar");
   if (bar) bar.style.width = `${Math.round((100 * st.step_index) / Math.max(1, st.n_steps - 1))}%`;
   app.dataset.step = st.step.kind;
@@ -771,7 +614,7 @@ async function refresh() {
 // it (no stored token, another Prolific SESSION_ID): the server sent no token.
 function showElsewhere(detail) {
   app.dataset.step = "elsewhere";
-  app.replaceChildren(h("h1", { text: "Study already in progress" }), h("p", { id: "elsewhere",
+  fill(app, h("h1", { text: "Study already in progress" }), h("p", { id: "elsewhere",
     text: detail || "This study is already in progress in another browser." }));
 }
 
@@ -779,7 +622,7 @@ function showElsewhere(detail) {
 // it and say so plainly.
 async function cannotGo(path, r) {
   keyHandler = null;
-  app.replaceChildren(h("h1", { text: "The study cannot continue" }));
+  fill(app, h("h1", { text: "The study cannot continue" }));
   showError(plainMessage(r.data));
   await report(path, r);
 }

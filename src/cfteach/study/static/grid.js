@@ -123,6 +123,12 @@ export function drawGrid(layout, state, opts = {}) {
         "data-kind": "trail" }, svg);
     }
   });
+  for (const cell of opts.highlight || []) {  // where two routes part (feedback page)
+    const [x0, y0] = origin(layout, cell);
+    el("rect", { x: x0 + 3, y: y0 + 3, width: CELL - 6, height: CELL - 6, fill: "none",
+      stroke: "#c0392b", "stroke-width": 6, "stroke-dasharray": "10 5",
+      "data-kind": "part" }, svg);
+  }
   const cargo = layout.cargo && state[layout.cargo.key] ? state[layout.cargo.key] : null;
   if (cargo && !state.carrying) {
     const [x0, y0] = origin(layout, cargo);
@@ -141,7 +147,11 @@ export function drawGrid(layout, state, opts = {}) {
   }
   if (opts.banner) {  // a string, or {lines: [...], tone: "fail"} (tone: a CSS class)
     const b = typeof opts.banner === "string" ? { lines: [opts.banner] } : opts.banner;
-    const size = b.lines.length > 1 ? 24 : 28, gap = size * 1.25;
+    // Bold text is about 0.62 em per character: shrink it so the longest line fits the
+    // board with a margin (a 4-cell board cannot hold "Demonstration complete" at 28 px).
+    const longest = Math.max(...b.lines.map((l) => l.length), 1);
+    const size = Math.min(b.lines.length > 1 ? 24 : 28, (W * 0.9) / (0.62 * longest));
+    const gap = size * 1.25;
     const top = H / 2 - (gap * (b.lines.length - 1)) / 2;
     el("rect", { x: 0, y: top - size * 1.1, width: W, height: gap * (b.lines.length - 1) +
       size * 1.6, class: "banner-back", "data-kind": "banner-back" }, svg);
@@ -149,7 +159,8 @@ export function drawGrid(layout, state, opts = {}) {
       class: `banner${b.tone ? ` ${b.tone}` : ""}`, "data-kind": "banner",
       "font-size": size }, svg);
     b.lines.forEach((line, i) => {
-      el("tspan", { x: W / 2, y: top + i * gap }, t).textContent = line;
+      const span = el("tspan", { x: W / 2, y: top + i * gap }, t);
+      span.textContent = line;
     });
   }
   return svg;

@@ -1,8 +1,8 @@
 // Talking to the server without losing anything.
 //
-// Every event waits in localStorage until the server has answered it with 200 (stored) or
-// 409 duplicate_event (stored by an earlier try whose answer was lost); nothing else removes
-// it. A 429, a 5xx (a proxy's 502 included), an unreadable answer or a network error is
+// Every event waits in localStorage until the server has answered it with 200 (stored),
+// 202 (stored, the next page still being prepared) or 409 duplicate_event (stored by an
+// earlier try whose answer was lost); nothing else removes it. A 429, a 5xx (a proxy's 502 included), an unreadable answer or a network error is
 // retried with the same event id, with exponential backoff, honouring Retry-After. An event
 // the server refuses for good (any other 4xx) is sent to /api/client-report and removed only
 // once the server has stored that report: the researcher sees what was sent and why it was
@@ -135,6 +135,10 @@ async function deliver(ev) {
   if (r.status === 200) {
     dropPending(ev.event_id);
     return r.data;
+  }
+  if (r.status === 202) {  // stored; what comes next is still being prepared
+    dropPending(ev.event_id);
+    return { ...r.data, ok: true, preparing: true };
   }
   if (r.status === 409 && r.data.error === "duplicate_event") {
     // Stored by an earlier try whose answer was lost: ask where the session is now.
