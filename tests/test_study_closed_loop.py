@@ -390,3 +390,32 @@ def test_held_out_summary_equals_the_teachers_own(cl_study: Path) -> None:
         t.observe({"actions": ["up"]} if item.kind == "test" else {})
         seen += 1
     assert seen >= 3
+
+
+def test_progress_moves_with_every_item_and_is_the_teachers_own(cl_study: Path,
+                                                                  tmp_path: Path) -> None:
+    """The page's bar reads `step.progress`: stored with each item when it is chosen, it
+    rises with every item and is what the same teacher, replayed offline, reports."""
+    from sqlalchemy import select
+
+    from cfteach.study.models import ClosedLoopItem
+
+    app = create_app(cl_study, f"sqlite:///{tmp_path / 'p.db'}", seed=5)
+    client, who = _closed_loop_client(app)
+    with client:
+        who.to_closed_loop()
+        st = who.ready()
+        assert st["step"]["progress"] == pytest.approx(0.0)  # nothing taught yet
+        run_participant(client, None, token=who.h["X-Session-Token"], study=load_study(cl_study))
+        with app.state.service.Session() as db:
+            rows = list(db.scalars(select(ClosedLoopItem).order_by(ClosedLoopItem.position)))
+    shown = [r.progress for r in rows]
+    assert len(shown) >= 3 and all(p is not None for p in shown)
+    assert all(b > a for a, b in zip(shown, shown[1:], strict=False)), shown
+    assert all(0.0 <= p <= 1.0 for p in shown)
+    study = load_study(cl_study)
+    cell = study["closed_loop"]["skateboard"]
+    responses = [{"actions": r.actions.split()} if r.kind == "test" else {} for r in rows]
+    offline = ClosedLoopTeacher.replay(pool_from_cell(cell), responses,
+                                       settings=settings_of(cell), seed=_teacher_seed(app, who))
+    assert shown == pytest.approx(offline.state_dict()["progress"][:len(shown)])

@@ -169,7 +169,7 @@ class ClosedLoopSteps:
             start_state=inst.state_to_json(ds.trajectory_states(r["demo"])[0]),
             shown_at=now, expected_area=r["expected_area"],
             predicted_optimal=r.get("predicted_optimal"),
-            predicted_held_out=r.get("predicted_held_out"))
+            predicted_held_out=r.get("predicted_held_out"), progress=r.get("progress"))
 
     # -- the page --------------------------------------------------------------------------
     def _cl_view(self, db: DBSession, row: Session, step: dict) -> dict:
@@ -183,7 +183,7 @@ class ClosedLoopSteps:
         inst = ds.instance(item.demo)
         layout = instance_layout(dom, inst)
         optimal = [inst.state_to_json(x) for x in ds.trajectory_states(item.demo)]
-        out: dict[str, Any] = {"preparing": False,
+        out: dict[str, Any] = {"preparing": False, "progress": item.progress,
                                "item": {"position": item.position, "kind": item.kind,
                                         "purpose": item.purpose, "layout": layout}}
         if item.kind == "test":

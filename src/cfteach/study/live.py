@@ -208,7 +208,8 @@ def item_summary(t: ClosedLoopTeacher, item: Item) -> dict:
     """The belief summary stored with an item when it is chosen."""
     return {"expected_area": float(t.belief.expected_area()),
             "predicted_optimal": item.predicted_optimal,
-            "predicted_held_out": held_out_p(t)}
+            "predicted_held_out": held_out_p(t),
+            "progress": float(t.progress())}
 
 
 def held_out_p(t: ClosedLoopTeacher) -> float | None:

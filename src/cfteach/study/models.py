@@ -168,6 +168,8 @@ class ClosedLoopItem(Base):
     expected_area: Mapped[float] = mapped_column(Float)     # belief when the item was chosen
     predicted_optimal: Mapped[float | None] = mapped_column(Float, nullable=True)
     predicted_held_out: Mapped[float | None] = mapped_column(Float, nullable=True)
+    # share of the teaching done when the item was chosen (the page's progress bar)
+    progress: Mapped[float | None] = mapped_column(Float, nullable=True)
     shown_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     done_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     server_ms: Mapped[int | None] = mapped_column(Integer, nullable=True)

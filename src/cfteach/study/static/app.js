@@ -594,7 +594,12 @@ function render(st) {
     return;
   }
   const bar = document.getElementById("progress-bar");
-  if (bar) bar.style.width = `${Math.round((100 * st.step_index) / Math.max(1, st.n_steps - 1))}%`;
+  // within a closed-loop page the teacher's own progress moves the bar with every item
+  const within = st.step.kind === "closed_loop" && typeof st.step.progress === "number"
+    ? Math.min(1, Math.max(0, st.step.progress)) : 0;
+  if (bar) {
+    bar.style.width = `${Math.round((100 * (st.step_index + within)) / Math.max(1, st.n_steps - 1))}%`;
+  }
   app.dataset.step = st.step.kind;
   app.dataset.stepIndex = String(st.step_index);
   const page = pages[st.step.kind];
