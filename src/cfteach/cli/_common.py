@@ -177,3 +177,17 @@ def study_sessions(url: str) -> int | None:
              f"{str(exc).splitlines()[0]})")
     finally:
         engine.dispose()
+
+
+def check_known(dom: Any, known: str | None) -> tuple[str, ...] | None:
+    """--known checked against the domain (one line naming the problem), or None: every
+    command that teaches checks it before any work."""
+    if known is None:
+        return None
+    from cfteach.teaching.known import known_names
+
+    try:
+        return known_names(dom, known)
+    except ValueError as exc:
+        fail(f"--known: {exc}")
+    return None  # pragma: no cover - fail exits

@@ -54,7 +54,13 @@ def reproduce(
     self-contained index.html report."""
     from cfteach.bec.demos import PROFILES
     from cfteach.cli import _progress
-    from cfteach.cli._common import check_out_dir, did_you_mean, fail, load_domain
+    from cfteach.cli._common import (
+        check_known,
+        check_out_dir,
+        did_you_mean,
+        fail,
+        load_domain,
+    )
     from cfteach.cli.teach_cmd import check_parallel
     from cfteach.report import build_report, load_meta, load_results
     from cfteach.report.reproduce import reproduce as run
@@ -77,14 +83,7 @@ def reproduce(
     check_parallel(backend, workers, scheduler)
     check_out_dir(out)
     for name in split_list(domains) or []:  # every check before hours of work
-        loaded = load_domain(name, force=force, sphere=not no_report)
-        if known is not None:
-            from cfteach.teaching.known import known_names
-
-            try:
-                known_names(loaded, known)
-            except ValueError as exc:
-                fail(f"--known: {exc}")
+        check_known(load_domain(name, force=force, sphere=not no_report), known)
     try:
         results, index = run(out, split_list(domains), profile=profile, seed=seed,
                              report=not no_report, backend=backend, workers=workers,

@@ -65,22 +65,14 @@ def register(app: typer.Typer) -> None:
         optimal by difficulty x condition (95% CIs) and the H1 overlap-correctness
         correlation, as JSON, CSV and plots."""
         from cfteach.cli import _progress
-        from cfteach.cli._common import check_out_dir, load_domain
+        from cfteach.cli._common import check_known, check_out_dir, load_domain
 
         _progress.set_quiet(quiet)
         check_out_dir(out)  # before the work: a bad --out must not cost the whole sweep
         _check_names(split_list(conditions), split_list(learner))
         from cfteach.simulate.sweep import run_sweep
         for name in split_list(domains) or []:  # the domain checks and the size guard
-            loaded = load_domain(name, force=force)
-            if known is not None:
-                from cfteach.cli._common import fail
-                from cfteach.teaching.known import known_names
-
-                try:
-                    known_names(loaded, known)
-                except ValueError as exc:
-                    fail(f"--known: {exc}")
+            check_known(load_domain(name, force=force), known)
         try:
             settings = _teacher_settings(split_list(teacher))
             result = run_sweep(

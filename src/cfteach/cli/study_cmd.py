@@ -123,17 +123,10 @@ def init(
         bad = [c for c in split_list(conditions) or [] if c not in ALL_CONDITIONS]
         fail(str(e) + (did_you_mean(bad[0], ALL_CONDITIONS) if bad else ""))
     if not (toy or preview or source is not None):  # teaching here: check domains first
-        from cfteach.cli._common import load_domain
+        from cfteach.cli._common import check_known, load_domain
 
         for name in names:
-            loaded = load_domain(name, force=force)
-            if known is not None:
-                from cfteach.teaching.known import known_names
-
-                try:
-                    known_names(loaded, known)
-                except ValueError as e:
-                    fail(f"--known: {e}")
+            check_known(load_domain(name, force=force), known)
     elif known is not None:
         fail("--known applies when teaching here (not with --toy, --preview or --from)")
     try:

@@ -14,6 +14,7 @@ from cfteach.cli import _options as _opt
 from cfteach.cli import _progress
 from cfteach.cli._common import (
     ENVS_HELP,
+    check_known,
     check_out_file,
     check_positive,
     did_you_mean,
@@ -30,19 +31,6 @@ _UNBOUNDED_HELP = ("Human models with unbounded values: skip (give nothing, the 
 _KNOWN_HELP = ("Features whose weight the learner is told, comma-separated (e.g. step; "
                "'none': none): beliefs live on that slice (docs/teaching.md). Default: the "
                "domain file's [beliefs] known.")
-
-
-def _known_of(dom: Any, known: str | None) -> tuple[str, ...] | None:
-    """--known checked against the domain (one line naming the problem), or None."""
-    if known is None:
-        return None
-    from cfteach.teaching.known import known_names
-
-    try:
-        return known_names(dom, known)
-    except ValueError as exc:
-        fail(f"--known: {exc}")
-    return None  # pragma: no cover - fail exits
 
 
 _FORCE_HELP = "Go on even when the size estimate exceeds the free memory."
@@ -169,7 +157,7 @@ def register(app: typer.Typer) -> None:
         check_parallel(backend, workers, scheduler)
         check_out_file(out)
         dom = load_domain(domain, force=force, envs=envs)
-        known_list = _known_of(dom, known)
+        known_list = check_known(dom, known)
         try:
             cur = teach(dom, condition, profile=profile, seed=seed, known=known_list,
                         human_models=human_models, max_demos=max_demos,
@@ -236,7 +224,7 @@ def register(app: typer.Typer) -> None:
                 fail(f"--training {path}: not JSON ({exc.msg} at line {exc.lineno}); "
                      "expected a curriculum written by `cfteach teach`")
         dom = load_domain(domain, force=force, envs=envs)
-        known_list = _known_of(dom, known)
+        known_list = check_known(dom, known)
         try:
             ts = select_tests(dom, training=curricula, profile=profile, seed=seed,
                               known=known_list,
