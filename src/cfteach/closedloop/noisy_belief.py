@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from cfteach.closedloop.belief import TOL, ParticleBelief, _check_rows
+from cfteach.closedloop.belief import TOL, ParticleBelief, _check_rows, systematic_resample
 
 #: Rationality grid: Q-value differences of a domain's actions are about 0.1-0.2 (weights are
 #: unit vectors), so beta = 2 is close to random and beta = 300 close to greedy.
@@ -302,9 +302,7 @@ class NoisyBelief(ParticleBelief):
         if not self.resample or self.ess() >= n / 2:
             return False
         rng = np.random.default_rng([self.seed, 2, self.n_resamples])
-        positions = (rng.random() + np.arange(n)) / n
-        cdf = np.cumsum(self.weights)
-        pick = np.minimum(np.searchsorted(cdf, positions * cdf[-1], side="right"), n - 1)
+        pick = systematic_resample(self.weights, rng)
         self.n_resamples += 1
         self.log_weights = np.full(n, -math.log(n))
         self.idx = {k: i[pick] for k, i in self.idx.items()}
