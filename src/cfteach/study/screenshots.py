@@ -39,7 +39,9 @@ def take_screenshots(study_dir: str | Path, out: str | Path, *, prefix: str = "s
     study = load_study(study_dir)
     saved: list[Path] = []
     with tempfile.TemporaryDirectory() as tmp:
-        app = create_app(study_dir, f"sqlite:///{Path(tmp) / 'shots.db'}", seed=0)
+        # a private server for one walker, which polls the page state: no per-session limit
+        app = create_app(study_dir, f"sqlite:///{Path(tmp) / 'shots.db'}", seed=0,
+                         states_per_minute=0)
         with running(app) as base, sync_playwright() as p, httpx.Client(base_url=base) as c:
             browser = p.chromium.launch(executable_path=chromium, args=ARGS, headless=True)
             page = browser.new_page(viewport={"width": width, "height": height})
