@@ -120,7 +120,7 @@ def _not_strict_json(body: bytes) -> str | None:
         if "finite" in msg:
             return f"body: {msg}"
     except RecursionError:
-        return "body: nested too deeply"
+        return None  # unreadable: the app's own parser answers 400, as for any bad JSON
     return None
 
 
