@@ -364,16 +364,11 @@ class ParticleBelief:
         density depends only on the angle between the two points), targeting the posterior.
         The scale follows the particles' spread, then is halved or grown by the acceptance."""
         n, d = pts.shape
-        centre = pts.mean(axis=0)
-        spread = math.sqrt(max(1.0 - float(centre @ centre), 0.0) / (d - 1))
-        step = min(max(2.38 / math.sqrt(d - 1) * spread, 1e-6), 1.0)
+        step = initial_step(pts)
         current = self.log_posterior(pts)
         rates = []
         for _ in range(self.n_moves):
-            z = rng.standard_normal((n, d))
-            z -= np.sum(z * pts, axis=1, keepdims=True) * pts
-            prop = pts + step * z
-            prop /= np.linalg.norm(prop, axis=1, keepdims=True)
+            prop = tangent_proposal(pts, step, rng)
             lp = self.log_posterior(prop)
             accept = np.log(rng.random(n)) < lp - current
             pts = np.where(accept[:, None], prop, pts)
@@ -427,3 +422,22 @@ def systematic_resample(weights: np.ndarray, rng: np.random.Generator) -> np.nda
     positions = (rng.random() + np.arange(n)) / n
     cdf = np.cumsum(weights)
     return np.minimum(np.searchsorted(cdf, positions * cdf[-1], side="right"), n - 1)
+
+
+def initial_step(pts: np.ndarray) -> float:
+    """Random-walk scale from the particles' spread on the sphere (2.38 / sqrt(d - 1) times
+    it, the usual optimal-scaling rule), kept within [1e-6, 1]."""
+    d = pts.shape[1]
+    centre = pts.mean(axis=0)
+    spread = math.sqrt(max(1.0 - float(centre @ centre), 0.0) / (d - 1))
+    return min(max(2.38 / math.sqrt(d - 1) * spread, 1e-6), 1.0)
+
+
+def tangent_proposal(pts: np.ndarray, step: float, rng: np.random.Generator) -> np.ndarray:
+    """A symmetric proposal on the sphere: a Gaussian step in each point's tangent plane,
+    projected back to unit length."""
+    z = rng.standard_normal(pts.shape)
+    z -= np.sum(z * pts, axis=1, keepdims=True) * pts
+    prop = pts + step * z
+    prop /= np.linalg.norm(prop, axis=1, keepdims=True)
+    return prop

@@ -37,7 +37,14 @@ from typing import Any
 
 import numpy as np
 
-from cfteach.closedloop.belief import TOL, ParticleBelief, _check_rows, systematic_resample
+from cfteach.closedloop.belief import (
+    TOL,
+    ParticleBelief,
+    _check_rows,
+    initial_step,
+    systematic_resample,
+    tangent_proposal,
+)
 
 #: Rationality grid: Q-value differences of a domain's actions are about 0.1-0.2 (weights are
 #: unit vectors), so beta = 2 is close to random and beta = 300 close to greedy.
@@ -314,18 +321,13 @@ class NoisyBelief(ParticleBelief):
         `ParticleBelief`), then for each grid a uniform proposal among its other values;
         all symmetric, each accepted by the posterior ratio."""
         n, d = pts.shape
-        centre = pts.mean(axis=0)
-        spread = math.sqrt(max(1.0 - float(centre @ centre), 0.0) / (d - 1))
-        step = min(max(2.38 / math.sqrt(d - 1) * spread, 1e-6), 1.0)
+        step = initial_step(pts)
         idx = {k: i.copy() for k, i in self.idx.items()}
         parts = self._parts(pts)
         current = self._posterior_from(parts, idx)
         rates = []
         for _ in range(self.n_moves):
-            z = rng.standard_normal((n, d))
-            z -= np.sum(z * pts, axis=1, keepdims=True) * pts
-            prop = pts + step * z
-            prop /= np.linalg.norm(prop, axis=1, keepdims=True)
+            prop = tangent_proposal(pts, step, rng)
             prop_parts = self._parts(prop)
             lp = self._posterior_from(prop_parts, idx)
             accept = np.log(rng.random(n)) < lp - current
