@@ -1,4 +1,5 @@
-"""One-action-deviation constraints (spec §5.1) and counterfactual constraints (spec §6.2),
+"""One-action-deviation constraints (the paper's Eq. (2)) and counterfactual constraints (its
+Eq. (3)),
 for every candidate demonstration at once.
 
 One-action rows of demo d: for every step t and every action b other than the demo's,

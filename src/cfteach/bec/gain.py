@@ -1,4 +1,5 @@
-"""Knowledge gain (spec §7) and overlap of thousands of demonstrations against one region.
+"""Knowledge gain (the paper's Algorithm 1) and overlap (its Algorithm 2, `measureOverlap`) of
+thousands of demonstrations against one region.
 
 gain(xi) = area(running) / area(running & C(xi)); overlap(xi) = area(B & BEC'(xi)). Both only
 depend on the rows that actually *cut* the region: a row c is redundant w.r.t. a convex cone

@@ -1,4 +1,5 @@
-"""Greedy rollouts the way the reference makes them (spec §3), batched and one at a time.
+"""Greedy rollouts the way the authors' code makes them (docs/domains.md, "Policies and
+rollouts"), batched and one at a time.
 
 A rollout starts at a state, optionally takes one forced first action, then follows the
 greedy policy. It stops at a terminal state, after `max_steps` steps in total (the forced

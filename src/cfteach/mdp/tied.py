@@ -1,4 +1,5 @@
-"""Tied-optimal trajectories of a human model, by dynamic programming (spec §3, §6.2).
+"""Tied-optimal trajectories of a human model, by dynamic programming (the counterfactual
+`pi_w` of the paper's Eq. (3); docs/domains.md, "Benefit of the doubt").
 
 The reference enumerates every trajectory that takes only tied-optimal actions under the
 human's weights (depth first, action order, length <= 25 unless it reaches the terminal) and
@@ -333,7 +334,8 @@ def count_tied_trajectories(
     """Number of tied-optimal trajectories from every state, ``[E, M, S]`` (capped at `cap`).
 
     A trajectory ends at the terminal or after `horizon` steps, as in the reference's
-    recursive enumeration, which stops collecting after more than 10 (spec §3): where this
+    recursive enumeration, which stops collecting after more than 10 (docs/domains.md,
+    "Benefit of the doubt"): where this
     count exceeds 10 the reference saw only a prefix of the depth-first order.
     """
     tied = np.asarray(tied, dtype=bool)

@@ -1,4 +1,5 @@
-"""The prior work's BEC scaffolding (spec §9): conditions `baseline` and `feature_only`.
+"""The prior work's BEC scaffolding (Lee et al. 2021, the paper's Section V; docs/teaching.md,
+"The conditions"): conditions `baseline` and `feature_only`.
 
 No counterfactuals and no human models: every demo is summarised by its one-step minimal
 constraint set and that set's area ("BEC area", small = informative).

@@ -41,14 +41,16 @@ def check_proportion(p: float) -> float:
 
 
 def one_step_sets(ds: DemoSet) -> dict[int, np.ndarray]:
-    """Every demo's one-step minimal constraint set (spec §5.1), cached on the DemoSet."""
+    """Every demo's one-step minimal constraint set (the paper's Eq. (2), reduced), cached on
+    the DemoSet."""
     if "one_step_sets" not in ds.cache:
         ds.cache["one_step_sets"] = reduce_sets(one_action_rows(ds))
     return ds.cache["one_step_sets"]
 
 
 def nonzero_counts(sets: list[np.ndarray], n_features: int) -> np.ndarray:
-    """Nonzero entries per feature over a list of constraint sets (spec §8.1)."""
+    """Nonzero entries per feature over a list of constraint sets: what feature scaffolding
+    orders its masks by (the paper's Section IV, "Feature Scaffolding")."""
     out = np.zeros(n_features, dtype=np.int64)
     for s in sets:
         if len(s):

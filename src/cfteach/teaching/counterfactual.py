@@ -1,5 +1,5 @@
 """Algorithm 1: counterfactual scaffolding (`counterfactual_only`) and, with feature
-scaffolding, the `proposed` condition (spec §8).
+scaffolding, the `proposed` condition (the paper's Section IV and Algorithm 1).
 
 Each round samples human models from the learner's current belief, computes every candidate's
 counterfactual constraints against them, and shows the demonstration whose constraints shrink

@@ -1,4 +1,6 @@
-"""Visual tie-breaking between equally informative demonstrations (spec §8.4).
+"""Visual tie-breaking between equally informative demonstrations. The paper does not describe
+it; this follows the authors' code (docs/teaching.md, "The conditions"; the two measures:
+docs/profiles.md, difference 7).
 
 Candidates are sorted by (visual complexity of the instance, dissimilarity to the previous
 demonstration, a seeded random key) and the first is taken: simple scenes first, then scenes
