@@ -57,7 +57,7 @@ def resolve_domain(domain: Domain | str) -> Domain:
     if isinstance(domain, Domain):
         return domain
     if isinstance(domain, str | bytes) or hasattr(domain, "__fspath__"):
-        return load(domain)  # type: ignore[arg-type]
+        return load(domain)
     raise TypeError(f"domain must be a Domain, a built-in name or a path, got {domain!r}")
 
 

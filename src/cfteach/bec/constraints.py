@@ -162,7 +162,7 @@ def _cf_settings(ds: DemoSet, W: np.ndarray, method: str | None, reference_ties:
 
 def counterfactual_rows(ds: DemoSet, W: np.ndarray, *, method: str | None = None,
                         reference_ties: bool | None = None, unbounded: str | None = None,
-                        ) -> tuple[RowSet, np.ndarray, np.ndarray]:
+                        ) -> tuple[RowSet, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Joint counterfactual rows of every demo under human models ``W [M, F]``.
 
     Returns ``(joint RowSet, bounded [E, M], raw)`` where raw = (rows [N, F], demo [N],

@@ -69,7 +69,7 @@ class DemoSet:
     terminal: np.ndarray
     dev_mu: np.ndarray
     demo_of: np.ndarray
-    cache: dict[str, Any] = field(default_factory=dict, repr=False)
+    cache: dict[str | tuple[Any, ...], Any] = field(default_factory=dict, repr=False)
 
     @property
     def D(self) -> int:  # noqa: N802 - array-shape name
@@ -146,6 +146,7 @@ def _build(domain: Domain, profile: str) -> DemoSet:
     Q = vals.Q[:, 0]
     policy = greedy_actions(Q)
     ro = rollout_features(batch, policy, return_paths=True)
+    assert ro.states is not None and ro.actions is not None  # return_paths gives both
     dev = rollout_features(batch, policy, first_action="all")
     e_idx, s_idx = np.nonzero(batch.valid)  # instance-major, state order
     T = MAX_STEPS

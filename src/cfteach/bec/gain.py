@@ -48,6 +48,7 @@ def cone_generators(region: Region) -> np.ndarray | None:
         g2 = g2 if g2 @ n[0] > 0 else -g2
         return np.vstack([d, -d, g1, g2])
     u = region.interior_point()
+    assert u is not None  # the region is not empty (checked above)
     v = np.cross(n, np.roll(n, -1, axis=0))
     sign = np.where(v @ u >= 0, 1, -1)
     return v * sign[:, None]

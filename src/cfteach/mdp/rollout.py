@@ -157,7 +157,7 @@ def _roll(batch: MDPBatch, pol: np.ndarray, e: np.ndarray, em: np.ndarray, cur: 
         s = cur[ids]
         s2 = nxt_tab[e[ids], s, act]
         mu[ids] += feat_tab[e[ids], s, act]
-        if return_paths:
+        if paths_s is not None and paths_a is not None:  # return_paths
             paths_a[ids, length[ids]] = act
             paths_s[ids, length[ids] + 1] = s2
         length[ids] += 1

@@ -245,6 +245,7 @@ def best_tied_trajectories(
     env = np.repeat(np.arange(e_n), m_n)
     pairs = _Pairs(batch, env, tied_actions(Q_h, tol).reshape(e_n * m_n, s_n, a_n))
     mu, length, feasible, first = pairs.best(w, horizon, record_first=True)
+    assert first is not None  # record_first gives the first actions
     value = np.where(feasible | ~pairs.real, mu @ w, -np.inf)
     return BestTied(first_action=first.reshape(horizon, e_n, m_n, s_n),
                     mu=mu.reshape(e_n, m_n, s_n, batch.F), value=value.reshape(e_n, m_n, s_n),
@@ -321,6 +322,7 @@ def best_tied_policy(
         return np.zeros((0, batch.S), dtype=np.int64)
     pairs = _Pairs(batch, env, tied_actions(Q, tol))
     first = pairs.best(w, horizon, record_first="last", must_finish=must_finish)[3]
+    assert first is not None  # record_first="last" gives the first actions
     return first[0].astype(np.int64).reshape(len(env), batch.S)
 
 

@@ -300,7 +300,7 @@ def _greedy_has_positive_cycle(Q: np.ndarray, R: np.ndarray, nxt: np.ndarray) ->
     scale = np.bincount(low[on_cycle], weights=np.abs(g.ravel()[on_cycle]),
                         minlength=p_n * s_n)
     positive = totals > 1e-9 * np.maximum(1.0, scale)
-    return positive.reshape(p_n, s_n).any(axis=1)
+    return np.asarray(positive.reshape(p_n, s_n).any(axis=1))
 
 
 def greedy_actions(Q: np.ndarray) -> np.ndarray:

@@ -99,7 +99,7 @@ def boundary_arcs(normals: np.ndarray, n_points: int = 720) -> list[np.ndarray]:
         run: list[int] = []
         for idx in order:
             if keep[idx]:
-                run.append(idx)
+                run.append(int(idx))
             elif run:
                 arcs.append(circle[run])
                 run = []

@@ -221,7 +221,8 @@ def _kmeans_pick(ds: DemoSet, pool: np.ndarray, n_pick: int, pool_size: int,
         cands = np.array([d for d in sample.tolist() if d not in taken], dtype=np.int64)
         if not len(cands):
             continue
-        last = (picks or chosen or [None])[-1]
+        before = picks or chosen
+        last = before[-1] if before else None
         dis = (dissimilarity_matrix(ds, cands, np.array([last]))[:, 0] if last is not None
                else np.zeros(len(cands)))
         o = np.lexsort((np.arange(len(cands)), comp[cands], dis))[0]
