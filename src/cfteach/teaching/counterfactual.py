@@ -218,7 +218,10 @@ def counterfactual_curriculum(
         while True:
             mask = masks[mask_i]
             gains = gains_all
-            if mask is not None:
+            if mask is not None and sl is None:
+                gains = masked_gains(joint, gains_all, mask, proportion, executor,
+                                     errors=errors_all)
+            elif mask is not None:
                 gains = masked_gains(joint, gains_all, mask, proportion, executor,
                                      errors=errors_all, sl=sl)
             if isinstance(running, Region):  # sl is None
