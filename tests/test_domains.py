@@ -27,7 +27,7 @@ def test_skateboard_per_env_state_counts() -> None:
 def test_delivery_per_env_state_counts() -> None:
     for inst in load("delivery").instances():
         assert len(inst.states()) == (191 if inst.env_code[5] else 100)
-    # Of the 191, exactly 91 still have the station (spec §2.1).
+    # Of the 191, exactly 91 still have the station (as in the authors' delivery domain).
     inst = load("delivery").instance((0, 0, 0, 0, 0, 1))
     assert sum(s[-1] for s in inst.states()) == 91
 

@@ -1,4 +1,5 @@
-"""Human-model samplers: the reference grid sampler reproduces reference-spec 6.1 exactly."""
+"""Human-model samplers: the reference grid sampler reproduces the authors' sampler exactly
+(docs/geometry.md, "Sampling")."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import pytest
 from cfteach.geometry import Region
 from cfteach.geometry.sampling import greedy_k_centres, sample_reference_grid, sample_uniform
 
-# reference-spec 6.1: the reference's output for the prior [[0, 0, -1]]
+# the authors' sampler's output for the prior [[0, 0, -1]] (docs/geometry.md, "Sampling")
 PRIOR_SAMPLES = np.array(
     [
         [-0.99999382, -0.00314473, -0.00157237],

@@ -66,7 +66,8 @@ def brute_vertices(normals: np.ndarray) -> np.ndarray:
 
 
 def reference_reduce(rows: np.ndarray) -> set[tuple[int, ...]]:
-    """The spec's LP method (reference-spec 5.2, steps 1-4), one LP per constraint."""
+    """The authors' LP redundancy method (docs/geometry.md, "More than 3 features"), one LP per
+    constraint."""
     rows = np.array([r // np.gcd.reduce(np.abs(r)) for r in rows if np.any(r != 0)])
     kept = [tuple(int(x) for x in r) for r in np.unique(rows, axis=0)]
     i = 0

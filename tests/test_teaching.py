@@ -27,7 +27,7 @@ from cfteach.teaching.visual_arrays import (
     dissimilarity_pairs,
     typical_dissimilarities,
 )
-from test_geometry_human_models import PRIOR_SAMPLES as SPEC_MODELS  # spec §6.1's eight
+from test_geometry_human_models import PRIOR_SAMPLES as SPEC_MODELS  # the authors' eight
 
 MASKS = {"delivery": ["hotswap", "toll", "step"], "tiles": ["B", "A", "step"],
          "skateboard": ["path_step", "base_step", "skateboard_step"]}

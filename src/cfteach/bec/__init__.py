@@ -1,11 +1,12 @@
-"""Constraints on the reward weights that demonstrations convey (spec §5-§7).
+"""Constraints on the reward weights that demonstrations convey (the paper's Sections III-IV;
+docs/teaching.md, "Constraints of single demonstrations").
 
 A constraint ``c`` means ``c . w >= 0``. Two kinds:
 
-* one-action deviations (standard IRL, spec §5.1): the demo beats every rollout that deviates
-  from it by one action at one step;
-* counterfactuals (spec §6.2): the demo beats what a human with weights ``w_h`` would have
-  done from each of its states (their tied-optimal trajectory with the best true reward).
+* one-action deviations (standard IRL, the paper's Eq. (2)): the demo beats every rollout
+  that deviates from it by one action at one step;
+* counterfactuals (the paper's Eq. (3)): the demo beats what a human with weights ``w_h``
+  would have done from each of its states (their tied-optimal trajectory with the best true reward).
 
 Single demonstrations::
 
@@ -56,7 +57,7 @@ def resolve_domain(domain: Domain | str) -> Domain:
     if isinstance(domain, Domain):
         return domain
     if isinstance(domain, str | bytes) or hasattr(domain, "__fspath__"):
-        return load(domain)  # type: ignore[arg-type]
+        return load(domain)
     raise TypeError(f"domain must be a Domain, a built-in name or a path, got {domain!r}")
 
 
@@ -107,8 +108,9 @@ def counterfactual_constraints(domain: Domain | str, env_index: int,
 
     Only the demo's instance is planned, so this is cheap enough per learner. Human models
     whose values are unbounded in this instance contribute nothing (``unbounded="skip"``,
-    spec §6.2) or the constraints that their positive loops do not pay (``"loops"``,
-    `loop_rows`); default: the profile's rule (skip for reference, loops for default).
+    the authors' rule) or the constraints that their positive loops do not pay (``"loops"``,
+    `loop_rows`); default: the profile's rule (skip for reference, loops for default;
+    docs/profiles.md, difference 6).
     """
     ds = demo_set(resolve_domain(domain), profile)
     d = _demo_index(ds, env_index, start_state)

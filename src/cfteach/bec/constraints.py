@@ -1,4 +1,5 @@
-"""One-action-deviation constraints (spec §5.1) and counterfactual constraints (spec §6.2),
+"""One-action-deviation constraints (the paper's Eq. (2)) and counterfactual constraints (its
+Eq. (3)),
 for every candidate demonstration at once.
 
 One-action rows of demo d: for every step t and every action b other than the demo's,
@@ -161,7 +162,7 @@ def _cf_settings(ds: DemoSet, W: np.ndarray, method: str | None, reference_ties:
 
 def counterfactual_rows(ds: DemoSet, W: np.ndarray, *, method: str | None = None,
                         reference_ties: bool | None = None, unbounded: str | None = None,
-                        ) -> tuple[RowSet, np.ndarray, np.ndarray]:
+                        ) -> tuple[RowSet, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Joint counterfactual rows of every demo under human models ``W [M, F]``.
 
     Returns ``(joint RowSet, bounded [E, M], raw)`` where raw = (rows [N, F], demo [N],

@@ -1,10 +1,12 @@
-"""The universe of candidate demonstrations of a domain, as flat arrays (spec §4).
+"""The universe of candidate demonstrations of a domain (the paper's Xi, Section III), as flat
+arrays.
 
 A demonstration is the greedy rollout under the true weights from one reachable state of one
-instance (reference rollout rules, spec §3). Every (instance, state) pair gives one candidate,
-so a domain has thousands; keeping them as arrays lets constraints, gains and overlaps be
-computed for all of them at once. Demo order: instance-major, then the instance's state order
-(BFS, `Instance.states()`), which is portable (unlike the reference's set order).
+instance (the authors' rollout rules: docs/domains.md, "Policies and rollouts"). Every
+(instance, state) pair gives one candidate, so a domain has thousands; keeping them as arrays
+lets constraints, gains and overlaps be computed for all of them at once. Demo order:
+instance-major, then the instance's state order (BFS, `Instance.states()`), which is portable
+(unlike the reference's set order).
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ class DemoSet:
         step_phi: ``[D, T, F]`` per-step features (0 after the end).
         suffix_mu: ``[D, T+1, F]`` features from step t to the end; ``suffix_mu[:, 0]`` = mu.
         dev_mu: ``[E, S, A, F]`` mu of the rollout from s with forced first action a, then
-            greedy (the one-action deviations, spec §5.1).
+            greedy (the one-action deviations of the paper's Eq. (2)).
         demo_of: ``[E, S]`` demo index of (instance, state), -1 where there is none.
     """
 
@@ -67,7 +69,7 @@ class DemoSet:
     terminal: np.ndarray
     dev_mu: np.ndarray
     demo_of: np.ndarray
-    cache: dict[str, Any] = field(default_factory=dict, repr=False)
+    cache: dict[str | tuple[Any, ...], Any] = field(default_factory=dict, repr=False)
 
     @property
     def D(self) -> int:  # noqa: N802 - array-shape name
@@ -144,6 +146,7 @@ def _build(domain: Domain, profile: str) -> DemoSet:
     Q = vals.Q[:, 0]
     policy = greedy_actions(Q)
     ro = rollout_features(batch, policy, return_paths=True)
+    assert ro.states is not None and ro.actions is not None  # return_paths gives both
     dev = rollout_features(batch, policy, first_action="all")
     e_idx, s_idx = np.nonzero(batch.valid)  # instance-major, state order
     T = MAX_STEPS

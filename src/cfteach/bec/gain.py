@@ -1,4 +1,5 @@
-"""Knowledge gain (spec §7) and overlap of thousands of demonstrations against one region.
+"""Knowledge gain (the paper's Algorithm 1) and overlap (its Algorithm 2, `measureOverlap`) of
+thousands of demonstrations against one region.
 
 gain(xi) = area(running) / area(running & C(xi)); overlap(xi) = area(B & BEC'(xi)). Both only
 depend on the rows that actually *cut* the region: a row c is redundant w.r.t. a convex cone
@@ -47,6 +48,7 @@ def cone_generators(region: Region) -> np.ndarray | None:
         g2 = g2 if g2 @ n[0] > 0 else -g2
         return np.vstack([d, -d, g1, g2])
     u = region.interior_point()
+    assert u is not None  # the region is not empty (checked above)
     v = np.cross(n, np.roll(n, -1, axis=0))
     sign = np.where(v @ u >= 0, 1, -1)
     return v * sign[:, None]

@@ -20,6 +20,12 @@ from pathlib import Path
 from typing import Any
 
 from cfteach.domains.model import Domain, Instance, State
+from cfteach.domains.random import (
+    parse_random_spec,
+    random_gridworld,
+    random_gridworld_dict,
+)
+from cfteach.domains.selection import parse_envs, subset
 from cfteach.domains.spec import (
     ACTION_EFFECTS,
     ACTIONS,
@@ -32,7 +38,8 @@ from cfteach.domains.spec import (
 
 __all__ = ["ACTIONS", "ACTION_EFFECTS", "BUILTIN_ACTIONS", "ActionSpec", "Domain",
            "DomainFileError", "Instance", "State",
-           "builtin_names", "builtin_path", "from_dict", "load"]
+           "builtin_names", "builtin_path", "from_dict", "load",
+           "parse_envs", "random_gridworld", "random_gridworld_dict", "subset"]
 
 
 def builtin_names() -> list[str]:
@@ -58,8 +65,6 @@ def _load_builtin(name: str) -> Domain:
 
 @cache
 def _load_random(spec: str) -> Domain:
-    from cfteach.domains.random import parse_random_spec, random_gridworld
-
     try:
         return random_gridworld(*parse_random_spec(spec))
     except TypeError as exc:  # the generator's own argument checks
@@ -99,9 +104,3 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Domain:
     """Build a domain from a dict with the TOML file's structure (same validation)."""
     return Domain.from_spec(parse_spec(data, source=source))
 
-
-# Imported last: the generator builds its domains through `from_dict` above.
-from cfteach.domains.random import random_gridworld, random_gridworld_dict  # noqa: E402
-from cfteach.domains.selection import parse_envs, subset  # noqa: E402
-
-__all__ += ["parse_envs", "random_gridworld", "random_gridworld_dict", "subset"]

@@ -113,7 +113,8 @@ def planning_findings(dom: Domain, batch: Any, values: Any) -> list[Finding]:
     states from which the goal cannot be reached."""
     out: list[Finding] = []
     goal = list(dom.spec.goal)
-    what = "the agent" if dom.spec.goal_kind == "agent_at" else f"the {dom.spec.cargo.name}"
+    cargo = dom.spec.cargo  # set whenever the goal is a delivery (parse_spec checks)
+    what = "the agent" if dom.spec.goal_kind == "agent_at" or cargo is None else f"the {cargo.name}"
     for e in range(batch.E):
         inst = batch.instances[e]
         tag = f"{dom.name}: instance {inst.index} (env code {list(inst.env_code)})"

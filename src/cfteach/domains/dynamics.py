@@ -15,16 +15,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
-from cfteach.domains.spec import ACTION_EFFECTS, Condition, DomainSpec
+from cfteach.domains.records import ACTION_EFFECTS, Cell, Condition, DomainSpec
 
-if TYPE_CHECKING:
-    from cfteach.domains.model import Instance
-
-__all__ = ["Exploration", "Layout", "explore", "step_arrays"]
+__all__ = ["Exploration", "LaidOut", "Layout", "explore", "step_arrays"]
 
 _MOVE, _PICKUP, _DROPOFF, _EXIT, _STAY = (ACTION_EFFECTS.index(e) for e in
                                           ("move", "pickup", "dropoff", "exit", "stay"))
@@ -46,6 +43,25 @@ class _Cond:
     negated: tuple[_Cond, ...]
 
 
+class _HasSpec(Protocol):
+    @property
+    def spec(self) -> DomainSpec: ...
+
+
+class LaidOut(Protocol):
+    """What `Layout` reads of an instance (`cfteach.domains.model.Instance` is one): its
+    domain's spec, whether its cargo exists, and its cell sets. Written as a protocol so the
+    rules stand on the domain records alone, below the `Instance` class that uses them."""
+
+    @property
+    def domain(self) -> _HasSpec: ...
+
+    @property
+    def cargo_present(self) -> bool: ...
+
+    def cells(self, name: str) -> frozenset[Cell]: ...
+
+
 class Layout:
     """What the step needs to know about a group of instances of one domain, as arrays.
 
@@ -53,7 +69,7 @@ class Layout:
     the border is padding, so off-grid indices after clipping read False).
     """
 
-    def __init__(self, instances: Sequence[Instance]) -> None:
+    def __init__(self, instances: Sequence[LaidOut]) -> None:
         spec: DomainSpec = instances[0].domain.spec
         self.spec = spec
         self.n = len(instances)

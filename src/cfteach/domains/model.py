@@ -1,9 +1,10 @@
 """The generic gridworld engine: `Domain` (a family of instances) and `Instance` (one MDP).
 
 All three study domains, and any user domain, run through this one engine; what differs is
-only the data in the domain file (see docs/domains.md). The semantics follow the reference
-spec §1-§2 exactly: 1-based coordinates with y up, blocked moves leave the state unchanged,
-features are computed per transition (s, a, s').
+only the data in the domain file (see docs/domains.md). Features are computed per transition
+(s, a, s'), as the paper's R = w* . phi(s, a, s') (Section III); the conventions (1-based
+coordinates with y up, blocked moves leave the state unchanged) are those of the authors'
+code (docs/domains.md, "Using a domain from Python").
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from cfteach.domains.dynamics import Layout, explore, step_arrays
-from cfteach.domains.spec import ActionSpec, Cell, DomainSpec
+from cfteach.domains.records import ActionSpec, Cell, DomainSpec
 
 State = tuple[int, ...]
 
@@ -179,7 +180,7 @@ class Instance:
         self._spec = spec
 
         init: list[int] = list(spec.agent_start)
-        if self.has_cargo_slot:
+        if spec.cargo is not None:  # has_cargo_slot
             init += [*spec.cargo.start, 0] if self.cargo_present else [0, 0, 0]
         init += [1 if p else 0 for p in self.consumables_present]
         self.initial_state: State = tuple(init)
@@ -263,7 +264,7 @@ class Instance:
         """The schema's JSON form: {"agent": [x, y], <cargo>: [x, y] | null, "carrying", ...}."""
         out: dict[str, Any] = {"agent": [state[0], state[1]]}
         off = 2
-        if self.has_cargo_slot:
+        if self._spec.cargo is not None:  # has_cargo_slot
             out[self._spec.cargo.name] = ([state[2], state[3]] if self.cargo_present else None)
             out["carrying"] = bool(state[4])
             off = 5
@@ -277,7 +278,7 @@ class Instance:
         if not isinstance(data, dict):
             raise ValueError(f"{where}: a state must be a JSON object, got {type(data).__name__}")
         expected = {"agent"}
-        if self.has_cargo_slot:
+        if self._spec.cargo is not None:  # has_cargo_slot
             expected |= {self._spec.cargo.name, "carrying"}
         expected |= set(self._cons_names)
         if set(data) != expected:
@@ -300,7 +301,7 @@ class Instance:
             return (x, y)
 
         s: list[int] = list(cell("agent"))
-        if self.has_cargo_slot:
+        if self._spec.cargo is not None:  # has_cargo_slot
             cname = self._spec.cargo.name
             carrying = data["carrying"]
             if not isinstance(carrying, bool):
@@ -343,13 +344,15 @@ class Instance:
         return cargo, cons
 
     def state_hash_digits(self, state: State) -> list[int]:
-        """Decimal digits of the reference's state identity string (spec §8.4)."""
+        """Decimal digits of the reference's state identity string (the authors' visual
+        dissimilarity: docs/domains.md, "Using a domain from Python")."""
         cargo, cons = self._object_ints(state)
         ints = [state[0], state[1], *cargo, *cons]
         return [int(ch) for v in ints for ch in str(v)]
 
     def state_attribute_tuple(self, state: State) -> list[int]:
-        """The reference's raw attribute tuple of a state (spec §8.4)."""
+        """The reference's raw attribute tuple of a state (the authors' visual dissimilarity:
+        docs/domains.md, "Using a domain from Python")."""
         out = [state[0], state[1]]
         if self.has_cargo_slot:
             out.append(state[4])

@@ -6,8 +6,9 @@ and simulated learners behave beyond that, `random_gridworld` draws a tiles-like
 a step feature, random negative weights, random walls that keep every free cell (and so
 the goal) reachable, and `log2(n_instances)` variant bits, each switching on a few cells
 of one kind. Everything is drawn from `seed`, and the domain is built through the same
-declarative loader as user files (`cfteach.domains.from_dict`), so it is an ordinary
-`Domain` (and `random_gridworld_dict(...)` can be saved as a TOML domain file).
+declarative loader as user files (`parse_spec`, as `cfteach.domains.from_dict` does), so it
+is an ordinary `Domain` (and `random_gridworld_dict(...)` can be saved as a TOML domain
+file).
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from collections import deque
 from typing import Any
 
 import numpy as np
+
+from cfteach.domains.model import Domain
+from cfteach.domains.spec import parse_spec
 
 __all__ = ["RANDOM_SPEC_HELP", "is_random_spec", "parse_random_spec", "random_gridworld",
            "random_gridworld_dict"]
@@ -145,7 +149,7 @@ def random_gridworld_dict(width: int, height: int, n_features: int, n_instances:
 
 
 def random_gridworld(width: int, height: int, n_features: int, n_instances: int,
-                     seed: int, **options: Any):
+                     seed: int, **options: Any) -> Domain:
     """A random `Domain` with `n_features` features and `n_instances` instances (a power of
     two: `log2(n_instances)` variant bits), reproducible from `seed`.
 
@@ -153,10 +157,8 @@ def random_gridworld(width: int, height: int, n_features: int, n_instances: int,
     disconnect the free cells), `cells_per_variant` (cells a variant bit switches on, 2),
     `name`. Example: ``random_gridworld(10, 10, 5, 4096, seed=0)``.
     """
-    from cfteach.domains import from_dict
-
     data = random_gridworld_dict(width, height, n_features, n_instances, seed, **options)
-    return from_dict(data, source=f"random_gridworld(seed={seed})")
+    return Domain.from_spec(parse_spec(data, source=f"random_gridworld(seed={seed})"))
 
 
 def is_random_spec(text: object) -> bool:

@@ -9,7 +9,7 @@ dimensions. The measure is ``fraction * |S^(F-1)|`` with ``fraction = P(N Z >= 0
 * for up to F linearly independent rows (a simplicial cone) as a Gaussian orthant
   probability with Genz's quasi-Monte Carlo (``scipy.stats.multivariate_normal.cdf``),
   repeated with independent randomisations to give the standard error;
-* otherwise by importance sampling of directions (``_shared.shared_sample``: a mixture of
+* otherwise by importance sampling of directions (``_importance.shared_sample``: a mixture of
   angular central Gaussians around the cone's centre, with bounded weights); the standard
   error is the sample one.
 """
@@ -24,7 +24,9 @@ from scipy.optimize import linprog, nnls
 from scipy.spatial import ConvexHull, QhullError
 from scipy.stats import multivariate_normal
 
+from ._importance import shared_sample
 from ._interior import interior_direction
+from ._sphere import sphere_area
 
 _REDUNDANT_TOL = 1e-9
 _GENZ_REPEATS = 8
@@ -72,13 +74,13 @@ def _hull_candidates(unit: np.ndarray, u: np.ndarray) -> np.ndarray | None:
 def _lp_filter(unit: np.ndarray, cand: np.ndarray) -> np.ndarray:
     """Drop row i when it is redundant for the cone of the other kept rows.
 
-    The reference-spec 5.2 check (``min n_i . w`` over the other kept rows' cone within
-    the unit box ``>= -1e-9``), run over the current kept set so duplicates of a facet
-    direction cannot protect each other. It is decided by Farkas' lemma first: ``n_i`` is
-    redundant iff it lies in the cone of the others, and the distance ``r`` from ``n_i`` to
-    that cone (non-negative least squares, ~10 us) bounds the LP's minimum between
-    ``-r sqrt(F)`` and ``-r``. Only when ``r`` falls in the band where the two criteria
-    could disagree (``1e-9 / sqrt(F) < r <= 1e-9``) is the LP itself solved.
+    The reference's redundancy check (docs/geometry.md, "More than 3 features"; ``min n_i . w``
+    over the other kept rows' cone within the unit box ``>= -1e-9``), run over the current kept
+    set so duplicates of a facet direction cannot protect each other. It is decided by Farkas'
+    lemma first: ``n_i`` is redundant iff it lies in the cone of the others, and the distance
+    ``r`` from ``n_i`` to that cone (non-negative least squares, ~10 us) bounds the LP's
+    minimum between ``-r sqrt(F)`` and ``-r``. Only when ``r`` falls in the band where the two
+    criteria could disagree (``1e-9 / sqrt(F) < r <= 1e-9``) is the LP itself solved.
     """
     kept = list(int(i) for i in cand)
     dim = unit.shape[1]
@@ -112,7 +114,7 @@ def _lp_redundant(row: np.ndarray, others: np.ndarray, dim: int) -> bool:
     """The reference's LP: ``min row . w`` s.t. ``others @ w >= 0``, ``-1 <= w <= 1``."""
     res = linprog(row, A_ub=-others, b_ub=np.zeros(len(others)),
                   bounds=[(-1.0, 1.0)] * dim, method="highs")
-    return bool(res.status == 0 and res.fun >= -_REDUNDANT_TOL)
+    return bool(res.status == 0 and res.fun is not None and res.fun >= -_REDUNDANT_TOL)
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> float:
@@ -122,10 +124,8 @@ def _angle(a: np.ndarray, b: np.ndarray) -> float:
 
 def area_nd(region: Any, solved: SolvedND, n_samples: int, seed: int) -> tuple[float, float]:
     """``(measure, standard error)`` of a region of S^(F-1), F > 3 (see module doc)."""
-    from .region import sphere_area
-
     total = sphere_area(region.dim)
-    if solved.empty:
+    if solved.empty or solved.interior is None:  # an empty cone has no interior direction
         return 0.0, 0.0
     unit = region._units()[solved.order]
     k = len(unit)
@@ -142,8 +142,6 @@ def area_nd(region: Any, solved: SolvedND, n_samples: int, seed: int) -> tuple[f
     if rank == k:
         frac, se = _orthant(unit @ unit.T, seed)
         return total * frac, total * se
-    from ._shared import shared_sample
-
     smp = shared_sample(unit, solved.interior, region._key(), seed=seed,
                         ess=n_samples / 20, max_draws=5 * n_samples)
     return total * smp.frac, total * smp.frac_se

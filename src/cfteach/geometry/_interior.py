@@ -75,7 +75,7 @@ def _wolfe(unit: np.ndarray, max_iter: int = 200) -> np.ndarray | None:
     k, dim = unit.shape
     g0 = unit @ unit.mean(axis=0)
     s_idx = [int(np.argmax(g0))]
-    lam = np.ones(1)
+    lam: np.ndarray = np.ones(1)
     x = unit[s_idx[0]].copy()
     for _ in range(max_iter):
         d = unit @ x
@@ -124,6 +124,6 @@ def _lp_direction(unit: np.ndarray) -> np.ndarray | None:
     a_ub = np.hstack([-unit, np.ones((k, 1))])
     bounds = [(-1.0, 1.0)] * dim + [(None, 1.0)]
     res = linprog(c, A_ub=a_ub, b_ub=np.zeros(k), bounds=bounds, method="highs")
-    if res.status != 0 or res.x is None or -res.fun <= MARGIN_EPS:
+    if res.status != 0 or res.x is None or res.fun is None or -res.fun <= MARGIN_EPS:
         return None
     return _accept(unit, res.x[:dim])

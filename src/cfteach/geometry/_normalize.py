@@ -54,7 +54,7 @@ def canonical_rows(arr: np.ndarray) -> tuple[np.ndarray, bool]:
     ``FLOAT_DEDUP_DECIMALS`` decimals. Row order: sorted (deterministic, input-order free).
     """
     if arr.dtype.kind in "biu":
-        ints = arr.astype(np.int64, copy=False)
+        ints: np.ndarray | None = arr.astype(np.int64, copy=False)
         integral = True
     else:
         f = arr.astype(np.float64, copy=False)

@@ -11,12 +11,13 @@ from __future__ import annotations
 import sys
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
-from math import gamma, pi
 from typing import Any
 
 import numpy as np
 
+from ._importance import _SAMPLES
 from ._normalize import INT_EXACT_LIMIT, as_matrix, canonical_rows, unit_rows
+from ._sphere import sphere_area
 from .sphere3 import SMALL_K, Solved3, polygon_vertices, solve3, solve3_batch
 
 _CACHE: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
@@ -26,16 +27,9 @@ _AREA_CACHE: dict[tuple[Any, ...], tuple[float, float]] = {}  # F > 3 estimates
 
 def clear_cache() -> None:
     """Forget all memoised region solutions (for memory or benchmarking)."""
-    from ._shared import _SAMPLES
-
     _CACHE.clear()
     _AREA_CACHE.clear()
     _SAMPLES.clear()
-
-
-def sphere_area(dim: int) -> float:
-    """Surface measure of the unit sphere S^(dim-1) in R^dim: 4 pi for dim = 3."""
-    return 2 * pi ** (dim / 2) / gamma(dim / 2)
 
 
 def infeasible_rows(dim: int, integral: bool = True) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Human-model samplers: draw m candidate weight vectors w_h from a belief region B(w).
 
 ``sample_reference_grid`` reproduces the reference implementation's deterministic sampler
-(reference-spec 6.1) bit for bit in structure: a 1000 x 1000 coarse grid to bound the
+(docs/geometry.md, "Sampling") bit for bit in structure: a 1000 x 1000 coarse grid to bound the
 region, an inverse-CDF fine grid refined until m points survive, then greedy k-centres.
 It is biased (grid-aligned, favours the bounding box's corners) and its cost grows as the
 region shrinks; ``sample_uniform`` draws exactly uniform samples instead.

@@ -315,6 +315,6 @@ def _lp_min(c: np.ndarray, a: np.ndarray, b: np.ndarray, face: np.ndarray | None
                       A_eq=face[None, :], b_eq=[r], bounds=bounds, method="highs")
     if res.status == 2:
         return math.inf
-    if res.status != 0:
+    if res.status != 0 or res.fun is None:
         raise RuntimeError(f"known-slice LP failed: {res.message}")
     return float(res.fun)

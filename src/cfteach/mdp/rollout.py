@@ -1,4 +1,5 @@
-"""Greedy rollouts the way the reference makes them (spec §3), batched and one at a time.
+"""Greedy rollouts the way the authors' code makes them (docs/domains.md, "Policies and
+rollouts"), batched and one at a time.
 
 A rollout starts at a state, optionally takes one forced first action, then follows the
 greedy policy. It stops at a terminal state, after `max_steps` steps in total (the forced
@@ -156,7 +157,7 @@ def _roll(batch: MDPBatch, pol: np.ndarray, e: np.ndarray, em: np.ndarray, cur: 
         s = cur[ids]
         s2 = nxt_tab[e[ids], s, act]
         mu[ids] += feat_tab[e[ids], s, act]
-        if return_paths:
+        if paths_s is not None and paths_a is not None:  # return_paths
             paths_a[ids, length[ids]] = act
             paths_s[ids, length[ids] + 1] = s2
         length[ids] += 1

@@ -1,4 +1,5 @@
-"""Tied-optimal trajectories of a human model, by dynamic programming (spec §3, §6.2).
+"""Tied-optimal trajectories of a human model, by dynamic programming (the counterfactual
+`pi_w` of the paper's Eq. (3); docs/domains.md, "Benefit of the doubt").
 
 The reference enumerates every trajectory that takes only tied-optimal actions under the
 human's weights (depth first, action order, length <= 25 unless it reaches the terminal) and
@@ -244,6 +245,7 @@ def best_tied_trajectories(
     env = np.repeat(np.arange(e_n), m_n)
     pairs = _Pairs(batch, env, tied_actions(Q_h, tol).reshape(e_n * m_n, s_n, a_n))
     mu, length, feasible, first = pairs.best(w, horizon, record_first=True)
+    assert first is not None  # record_first gives the first actions
     value = np.where(feasible | ~pairs.real, mu @ w, -np.inf)
     return BestTied(first_action=first.reshape(horizon, e_n, m_n, s_n),
                     mu=mu.reshape(e_n, m_n, s_n, batch.F), value=value.reshape(e_n, m_n, s_n),
@@ -320,6 +322,7 @@ def best_tied_policy(
         return np.zeros((0, batch.S), dtype=np.int64)
     pairs = _Pairs(batch, env, tied_actions(Q, tol))
     first = pairs.best(w, horizon, record_first="last", must_finish=must_finish)[3]
+    assert first is not None  # record_first="last" gives the first actions
     return first[0].astype(np.int64).reshape(len(env), batch.S)
 
 
@@ -333,7 +336,8 @@ def count_tied_trajectories(
     """Number of tied-optimal trajectories from every state, ``[E, M, S]`` (capped at `cap`).
 
     A trajectory ends at the terminal or after `horizon` steps, as in the reference's
-    recursive enumeration, which stops collecting after more than 10 (spec §3): where this
+    recursive enumeration, which stops collecting after more than 10 (docs/domains.md,
+    "Benefit of the doubt"): where this
     count exceeds 10 the reference saw only a prefix of the depth-first order.
     """
     tied = np.asarray(tied, dtype=bool)

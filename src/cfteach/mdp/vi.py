@@ -3,18 +3,18 @@
 Rewards are linear in the features, r = phi . w, and gamma = 1, so a weight vector can make a
 cycle of positive total reward and the values diverge. Two methods:
 
-* ``"reference"``: what the authors' code does (spec §3): V0 = 0, sweeps until the largest
-  change is <= 1e-25, at most 1000 sweeps, ``bounded`` = fewer than 1000 sweeps were needed.
-  This flag is wrong for cheap no-op weights (a bounded fixed point that takes > 1000 sweeps
-  to reach from 0), which the reference silently treats as unbounded. Pairs with a proven
-  positive cycle are not swept (the reference's sweeps could never settle): they get
-  ``bounded = False``, ``sweeps = 1000`` and, unlike the reference, ``V = +inf``. With
+* ``"reference"``: what the authors' code does (docs/domains.md, "Value iteration"): V0 = 0,
+  sweeps until the largest change is <= 1e-25, at most 1000 sweeps, ``bounded`` = fewer than
+  1000 sweeps were needed. This flag is wrong for cheap no-op weights (a bounded fixed point
+  that takes > 1000 sweeps to reach from 0), which the reference silently treats as unbounded.
+  Pairs with a proven positive cycle are not swept (the reference's sweeps could never settle):
+  they get ``bounded = False``, ``sweeps = 1000`` and, unlike the reference, ``V = +inf``. With
   ``skip_unstable=True`` also pairs proven unable to stabilise within 1000 sweeps (cheap
-  no-ops, see `_cannot_stabilise`) are not swept: ``bounded = False``, ``sweeps = 1000`` and
-  V = their true (exact) values instead of the reference's 1000th sweep. Callers that only
-  use the bounded pairs (the counterfactual constraints) save most of the sweeping.
-  We use synchronous (Jacobi) sweeps, the reference Gauss-Seidel ones in set order; the fixed
-  point is the same, the sweep count can differ only in borderline cases.
+  no-ops, see `_cannot_stabilise`) are not swept: ``bounded = False``, ``sweeps = 1000`` and V
+  = their true (exact) values instead of the reference's 1000th sweep. Callers that only use
+  the bounded pairs (the counterfactual constraints) save most of the sweeping. We use
+  synchronous (Jacobi) sweeps, the reference Gauss-Seidel ones in set order; the fixed point is
+  the same, the sweep count can differ only in borderline cases.
 * ``"exact"`` (default): Bellman-Ford longest paths to the terminal. V starts at -inf on real
   states (0 at the sink); after ``n + 1`` sweeps (n = real states) any further change proves
   a positive-reward cycle. Bounded pairs get the true optimal values; unbounded pairs get
@@ -106,7 +106,7 @@ def value_iteration(
     Args:
         batch: compiled instances (`compile_domain` / `compile_instances`).
         W: ``[M, F]`` (or ``[F]``) weight vectors, used as given (not normalised).
-        method: ``"exact"`` (true gamma = 1 answer) or ``"reference"`` (spec §3).
+        method: ``"exact"`` (true gamma = 1 answer) or ``"reference"`` (the authors' solver).
         env: optional instance indices to solve (default: all of the batch).
         chunk_bytes: working-memory budget per chunk of pairs.
         skip_unstable: reference only: do not sweep pairs proven unable to stabilise
@@ -204,7 +204,8 @@ def _cannot_stabilise(R: np.ndarray, nxt: np.ndarray, valid: np.ndarray,
     From V0 = 0, after k sweeps V_k(s) >= k * (best self-loop reward at s). If every reward
     is negative, every cycle is, so the only fixed point is the true V*; a state with
     V*(s) < 999 * (best self-loop reward) is therefore still above V* at sweep 999, and the
-    sweeps cannot have stopped earlier. (Cheap no-ops make exactly these pairs, spec §3.)
+    sweeps cannot have stopped earlier. (Cheap no-ops make exactly these pairs: docs/domains.md,
+    "Value iteration".)
     R, nxt: ``[P, A, S]``; valid, v_exact: ``[P, S]``.
     """
     s_n = R.shape[2]
@@ -299,7 +300,7 @@ def _greedy_has_positive_cycle(Q: np.ndarray, R: np.ndarray, nxt: np.ndarray) ->
     scale = np.bincount(low[on_cycle], weights=np.abs(g.ravel()[on_cycle]),
                         minlength=p_n * s_n)
     positive = totals > 1e-9 * np.maximum(1.0, scale)
-    return positive.reshape(p_n, s_n).any(axis=1)
+    return np.asarray(positive.reshape(p_n, s_n).any(axis=1))
 
 
 def greedy_actions(Q: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from cfteach.render._adapt import layout_from_instance
 from cfteach.render.raster import save_gif, save_png, to_image, to_rgb_array
 from cfteach.render.scene import (
     ActionMark,
@@ -26,7 +27,6 @@ from cfteach.render.scene import (
     Scene,
     SceneObject,
     action_mark,
-    layout_from_instance,
     scene_from_state_json,
     trail_of,
 )

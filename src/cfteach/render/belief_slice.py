@@ -13,17 +13,13 @@ from typing import Any
 import numpy as np
 
 from cfteach.geometry.slice import KnownSlice, _intervals, _polygon, _square
+from cfteach.render._slice_measure import prior_measure as prior_measure
+from cfteach.render._slice_measure import slice_of
+from cfteach.render.belief import plot_belief_sphere
 
 BELIEF = "#2e9d4a"
 BEC = "#e0b000"
 SLICE = "#b8b8b8"
-
-
-def slice_of(known: Mapping[str, Any], weights: Sequence[float],
-             feature_names: Sequence[str]) -> KnownSlice:
-    """The KnownSlice a JSON's ``settings.known`` describes (`weights`: the JSON's w*)."""
-    idx = [list(feature_names).index(k) for k in known["features"]]
-    return KnownSlice.make(np.asarray(weights, dtype=float), idx, known.get("measure", "ball"))
 
 
 def _arcs(sl: KnownSlice, rows: Any) -> list[np.ndarray]:
@@ -100,16 +96,5 @@ def belief_picture(constraints: Any, *, data: Mapping[str, Any], labels: Sequenc
     if known:
         sl = slice_of(known, data["weights"], data["feature_names"])
         return plot_belief_slice(constraints, sl, bec=bec, feature_names=labels, title=title)
-    from cfteach.render.belief import plot_belief_sphere
-
     return plot_belief_sphere(constraints, bec=bec, w_true=data["weights"],
                               feature_names=labels, title=title, resolution=resolution)
-
-
-def prior_measure(curriculum: Mapping[str, Any]) -> float | None:
-    """The prior's measure on the curriculum's slice (None when nothing is known)."""
-    known = (curriculum.get("settings") or {}).get("known")
-    if not known or curriculum.get("prior") is None:
-        return None
-    sl = slice_of(known, curriculum["weights"], curriculum["feature_names"])
-    return float(sl.region(curriculum["prior"]).area())

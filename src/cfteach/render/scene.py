@@ -143,10 +143,3 @@ def trail_of(states: Sequence[Mapping[str, Any]]) -> list[Cell]:
         if not cells or cells[-1] != c:
             cells.append(c)
     return cells
-
-
-def layout_from_instance(instance: Any) -> Layout:
-    """Build the static picture of a `cfteach.domains.Instance`."""
-    from cfteach.render._adapt import layout_from_instance as _impl
-
-    return _impl(instance)

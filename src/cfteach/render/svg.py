@@ -6,6 +6,7 @@ Every element carries `data-role` and, where it belongs to a grid cell, `data-ce
 
 from __future__ import annotations
 
+from typing import Any
 from xml.sax.saxutils import escape, quoteattr
 
 from cfteach.render.scene import Layout, Scene, SceneObject
@@ -83,10 +84,11 @@ def legend_icons(layout: Layout, px: int = 22) -> list[tuple[str, str]]:
     names = [n for n, _ in layout.cell_sets]
     items: list[tuple[str, str, Scene]] = []
 
-    def lay(**kw: object) -> Layout:
-        base = {"width": 2, "height": 1, "cell_sets": tuple((n, frozenset()) for n in names)}
+    def lay(**kw: Any) -> Layout:  # any Layout fields, each of its own type
+        base: dict[str, Any] = {"width": 2, "height": 1,
+                                "cell_sets": tuple((n, frozenset()) for n in names)}
         base.update(kw)
-        return Layout(**base)  # type: ignore[arg-type]
+        return Layout(**base)
 
     items.append(("robot", "agent", Scene(lay(), (1, 1))))
     trail = Scene(lay(), (2, 1), trail=((2, 1), (1, 1)))

@@ -1,4 +1,5 @@
-"""Curricula for the study's four conditions and test selection (spec §8-§10).
+"""Curricula for the study's four conditions and test selection (the paper's Section IV,
+Algorithms 1 and 2; docs/teaching.md).
 
     from cfteach.teaching import teach, select_tests
     cur = teach("delivery", "proposed", profile="reference")

@@ -1,4 +1,5 @@
-"""The prior work's BEC scaffolding (spec §9): conditions `baseline` and `feature_only`.
+"""The prior work's BEC scaffolding (Lee et al. 2021, the paper's Section V; docs/teaching.md,
+"The conditions"): conditions `baseline` and `feature_only`.
 
 No counterfactuals and no human models: every demo is summarised by its one-step minimal
 constraint set and that set's area ("BEC area", small = informative).
@@ -220,7 +221,8 @@ def _kmeans_pick(ds: DemoSet, pool: np.ndarray, n_pick: int, pool_size: int,
         cands = np.array([d for d in sample.tolist() if d not in taken], dtype=np.int64)
         if not len(cands):
             continue
-        last = (picks or chosen or [None])[-1]
+        before = picks or chosen
+        last = before[-1] if before else None
         dis = (dissimilarity_matrix(ds, cands, np.array([last]))[:, 0] if last is not None
                else np.zeros(len(cands)))
         o = np.lexsort((np.arange(len(cands)), comp[cands], dis))[0]

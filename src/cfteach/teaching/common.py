@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, overload
 
 import numpy as np
 
@@ -10,6 +11,7 @@ from cfteach.bec.constraints import one_action_rows
 from cfteach.bec.demos import DemoSet
 from cfteach.bec.rows import reduce_sets
 from cfteach.geometry import Region
+from cfteach.geometry.slice import SliceRegion
 
 CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
 
@@ -41,14 +43,16 @@ def check_proportion(p: float) -> float:
 
 
 def one_step_sets(ds: DemoSet) -> dict[int, np.ndarray]:
-    """Every demo's one-step minimal constraint set (spec §5.1), cached on the DemoSet."""
+    """Every demo's one-step minimal constraint set (the paper's Eq. (2), reduced), cached on
+    the DemoSet."""
     if "one_step_sets" not in ds.cache:
         ds.cache["one_step_sets"] = reduce_sets(one_action_rows(ds))
     return ds.cache["one_step_sets"]
 
 
 def nonzero_counts(sets: list[np.ndarray], n_features: int) -> np.ndarray:
-    """Nonzero entries per feature over a list of constraint sets (spec §8.1)."""
+    """Nonzero entries per feature over a list of constraint sets: what feature scaffolding
+    orders its masks by (the paper's Section IV, "Feature Scaffolding")."""
     out = np.zeros(n_features, dtype=np.int64)
     for s in sets:
         if len(s):
@@ -73,17 +77,25 @@ class DemoRecord:
     extra: dict = field(default_factory=dict)
 
 
-def tightened(belief: Region, rows: np.ndarray) -> Region:
+@overload
+def tightened(belief: Region, rows: np.ndarray) -> Region: ...
+
+
+@overload
+def tightened(belief: SliceRegion, rows: np.ndarray) -> SliceRegion: ...
+
+
+def tightened(belief: Region | SliceRegion, rows: np.ndarray) -> Region | SliceRegion:
     """The belief after also learning `rows` (``c . w >= 0``), kept irredundant so that its
     constraints can be reported as they are (on a known-weight slice: irredundant there)."""
     if not isinstance(belief, Region):  # a geometry.slice.SliceRegion
-        both = belief.with_rows(rows)
-        return type(belief)(belief.slice, both.reduced())
+        on_slice = belief.with_rows(rows)
+        return type(belief)(belief.slice, on_slice.reduced())
     both = Region(np.vstack([belief.reduced(), rows]), dim=belief.dim)
     return Region(both.reduced(), dim=belief.dim)
 
 
-def fit_kmeans(x: np.ndarray, n_clusters: int, seed: int) -> object:
+def fit_kmeans(x: np.ndarray, n_clusters: int, seed: int) -> Any:  # a fitted KMeans
     """scikit-learn's k-means (4 seeded starts) on one OpenMP thread.
 
     Why one thread: its centres differ in the last digits with the number of OpenMP threads,

@@ -1,5 +1,5 @@
 """Algorithm 1: counterfactual scaffolding (`counterfactual_only`) and, with feature
-scaffolding, the `proposed` condition (spec §8).
+scaffolding, the `proposed` condition (the paper's Section IV and Algorithm 1).
 
 Each round samples human models from the learner's current belief, computes every candidate's
 counterfactual constraints against them, and shows the demonstration whose constraints shrink
@@ -20,7 +20,7 @@ from cfteach.bec.demos import DemoSet
 from cfteach.bec.gain import REFINE_Z, refine_top
 from cfteach.bec.rows import RowSet, reduce_sets
 from cfteach.geometry import Region
-from cfteach.geometry.slice import KnownSlice
+from cfteach.geometry.slice import KnownSlice, SliceRegion
 from cfteach.parallel import Executor
 from cfteach.teaching import distribute, known
 from cfteach.teaching.common import (
@@ -176,7 +176,7 @@ def counterfactual_curriculum(
     tick: Callable[[str], None] | None = None,
     executor: Executor | None = None,
     sl: KnownSlice | None = None,
-) -> tuple[list[DemoRecord], Region, list[dict]]:
+) -> tuple[list[DemoRecord], Region | SliceRegion, list[dict]]:
     """Run Algorithm 1. Returns (chosen demos, final belief, per-round log).
 
     With an `executor` (more than one worker), each round's planning and geometry run on
@@ -210,17 +210,21 @@ def counterfactual_curriculum(
             log.append({"round": len(chosen), "stop": "no human model inside the belief"})
             break
         joint, bounded = counterfactual_rowset(ds, W, unbounded=unbounded, executor=executor)
-        gains_all, errors_all = distribute.gains(running, joint, executor) if sl is None \
-            else known.gains(running, joint)  # errors 0 if F=3 or on a slice
+        if isinstance(running, Region):  # sl is None
+            gains_all, errors_all = distribute.gains(running, joint, executor)
+        else:
+            gains_all, errors_all = known.gains(running, joint)  # errors 0 if F=3 or on a slice
         cands: list[int] = []
         while True:
             mask = masks[mask_i]
             gains = gains_all
-            if mask is not None:
-                on_slice = {} if sl is None else {"sl": sl}
+            if mask is not None and sl is None:
                 gains = masked_gains(joint, gains_all, mask, proportion, executor,
-                                     errors=errors_all, **on_slice)
-            if sl is None:
+                                     errors=errors_all)
+            elif mask is not None:
+                gains = masked_gains(joint, gains_all, mask, proportion, executor,
+                                     errors=errors_all, sl=sl)
+            if isinstance(running, Region):  # sl is None
                 gains = refine_top(running, joint, gains, errors_all)  # > 3 features only
             cands = candidate_set(ds.profile, gains, proportion, consistent)
             if cands or mask is None:

@@ -10,6 +10,7 @@ import numpy as np
 from cfteach.bec.demos import DemoSet
 from cfteach.domains import Domain
 from cfteach.geometry import Region
+from cfteach.geometry.slice import SliceRegion
 from cfteach.teaching.common import DemoRecord
 
 CURRICULUM_SCHEMA = "cfteach.curriculum/1"
@@ -53,7 +54,7 @@ class Curriculum:
     seed: int
     settings: dict[str, Any]
     records: list[DemoRecord]
-    final_belief: Region
+    final_belief: Region | SliceRegion  # on a known-weight slice, the slice's belief
     demo_set: DemoSet = field(repr=False)
     log: list[dict[str, Any]] = field(default_factory=list, repr=False)
 

@@ -1,8 +1,10 @@
 """Human models sampled from a belief: the profile's sampler.
 
-The reference profile uses the reference's deterministic grid (spec §6.1,
-`cfteach.geometry.sample_reference_grid`, 3 features only); the default profile draws exactly
-uniform samples (`cfteach.geometry.sample_uniform`).
+The paper samples m weights from the belief B(w*) (Section IV, Algorithms 1 and 2) without
+saying how. The reference profile uses the authors' deterministic grid
+(`cfteach.geometry.sample_reference_grid`, 3 features only); the default profile draws exactly
+uniform samples (`cfteach.geometry.sample_uniform`). Why they differ: docs/profiles.md,
+difference 1.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Algorithm 2: test difficulty and test selection (spec §10).
+"""Algorithm 2: test difficulty (the paper's Section IV, "Testing") and test selection (how the
+candidates become three difficulty levels: docs/teaching.md, "The conditions").
 
 For every candidate demonstration, BEC' = its one-step constraints + its counterfactual
 constraints under human models sampled from the post-teaching belief B. The smaller the

@@ -1,4 +1,6 @@
-"""Visual tie-breaking between equally informative demonstrations (spec §8.4).
+"""Visual tie-breaking between equally informative demonstrations. The paper does not describe
+it; this follows the authors' code (docs/teaching.md, "The conditions"; the two measures:
+docs/profiles.md, difference 7).
 
 Candidates are sorted by (visual complexity of the instance, dissimilarity to the previous
 demonstration, a seeded random key) and the first is taken: simple scenes first, then scenes
@@ -28,16 +30,12 @@ import numpy as np
 
 from cfteach.bec.demos import DemoSet
 from cfteach.domains import Instance, State
-
-
-def _hash_view(inst: Instance, state: State) -> list[int]:
-    return inst.state_hash_digits(state)
-
-
-def _data_view(inst: Instance, state: State) -> list[int]:
-    if not inst.has_cargo_slot and not len(inst.consumables_present):
-        return inst.state_hash_digits(state)
-    return inst.state_attribute_tuple(state)
+from cfteach.teaching._views import _data_view, _hash_view
+from cfteach.teaching.visual_arrays import (
+    dissimilarity_matrix,
+    typical_dissimilarities,
+    visual_arrays,
+)
 
 
 def reference_dissimilarity(inst: Instance, s: State, inst2: Instance, s2: State) -> float:
@@ -75,13 +73,6 @@ def tie_break(ds: DemoSet, candidates: Sequence[int], previous: int | None,
     """Pick one demo index among `candidates` by (complexity, dissimilarity, random).
 
     The dissimilarities come from `visual_arrays` (the same measures, batched)."""
-    # imported here: visual_arrays builds on this module's state views
-    from cfteach.teaching.visual_arrays import (
-        dissimilarity_matrix,
-        typical_dissimilarities,
-        visual_arrays,
-    )
-
     cands = np.array([int(c) for c in candidates], dtype=np.int64)
     if not len(cands):
         raise ValueError("tie_break needs at least one candidate")

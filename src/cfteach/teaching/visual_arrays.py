@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cfteach.bec.demos import DemoSet
-from cfteach.teaching.visual import _data_view, _hash_view
+from cfteach.teaching._views import _data_view, _hash_view
 
 
 @dataclass(frozen=True)
