@@ -283,7 +283,7 @@ def exploratory_plot(
 ) -> list[str]:
     """Per-participant demonstration plays and test time per optimal step, by condition,
     with the one-way ANOVA by condition in each panel's title."""
-    from cfteach.analysis.report import fmt_F
+    from cfteach.analysis.report_format import fmt_F
 
     s = frames.subjects
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))

@@ -290,7 +290,7 @@ def analyze(
         typer.echo(f"report: {out / 'report.html'}  ({out / 'report.md'}, {out / 'results.json'})")
         return
     rm = results["h1"]["rm_anova"]
-    from cfteach.analysis.report import fmt_F
+    from cfteach.analysis.report_format import fmt_F
 
     h1 = (
         f"not computed ({rm['skipped']})"
