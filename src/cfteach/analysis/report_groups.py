@@ -32,7 +32,7 @@ def _effects_table(doc: Doc, res: dict[str, Any]) -> None:
 
 
 def _means_table(doc: Doc, factor: str, means: list[dict[str, Any]]) -> None:
-    by = {}
+    by: dict[str, dict[str, dict[str, Any]]] = {}
     for m in means:
         by.setdefault(m["level"], {})[m["difficulty"]] = m
     rows = []

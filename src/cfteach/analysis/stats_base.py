@@ -59,7 +59,7 @@ def _ci(x: Any) -> list[float | None]:
     return [_num(arr[0]), _num(arr[1])] if arr.size == 2 else [None, None]
 
 
-def mean_ci(values: pd.Series | np.ndarray, level: float = 0.95) -> dict[str, float | None]:
+def mean_ci(values: pd.Series | np.ndarray, level: float = 0.95) -> dict[str, Any]:
     """Mean, SD, n and the t-based confidence interval of the mean."""
     v = np.asarray(values, dtype=float)
     v = v[~np.isnan(v)]

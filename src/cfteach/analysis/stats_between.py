@@ -100,7 +100,7 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
         subject="participant_id",
         correction=True,
     )
-    effects = {}
+    effects: dict[str, dict[str, Any]] = {}
     for _, r in res.iterrows():
         key = {factor: "between", "difficulty": "within", "Interaction": "interaction"}[r["Source"]]
         effects[key] = {
@@ -132,8 +132,7 @@ def mixed_anova(frames: Frames, factor: str) -> dict[str, Any]:
         _, adj = pg.multicomp(ps, method="holm")
         for s, a in zip(rows, adj, strict=True):
             s["p_holm_across"] = _num(a)
-    subj = cells.groupby(["participant_id", factor], observed=True)["optimal"].mean()
-    subj = subj.reset_index()
+    subj = cells.groupby(["participant_id", factor], observed=True)["optimal"].mean().reset_index()
     n_by = subj.groupby(factor, observed=True).size()
     out: dict[str, Any] = {
         "test": "two-way mixed ANOVA (pingouin.mixed_anova)",

@@ -139,8 +139,8 @@ def posthoc_difficulty(
     cells = complete_cells(frames.cells).copy()
     n = int(cells["participant_id"].nunique())
     if n < 2:
-        why = f"needs at least 2 participants with all three difficulties (have {n})"
-        return {"paired": skipped("paired t-tests", why)}
+        few = f"needs at least 2 participants with all three difficulties (have {n})"
+        return {"paired": skipped("paired t-tests", few)}
     if why := no_variance(cells):
         return {"paired": skipped("paired t-tests", why)}
     cells["difficulty"] = cells["difficulty"].astype(str)
@@ -249,8 +249,8 @@ def rm_corr_confidence(frames: Frames) -> dict[str, Any]:
     # cubic in N: minutes for 3000 people); CI as pingouin computes it (Fisher z, n = dof + 2)
     x = c["difficulty_code"].astype(float)
     y = c["confidence"].astype(float)
-    xc = x - x.groupby(c["participant_id"], observed=True).transform("mean")
-    yc = y - y.groupby(c["participant_id"], observed=True).transform("mean")
+    xc = (x - x.groupby(c["participant_id"], observed=True).transform("mean")).to_numpy()
+    yc = (y - y.groupby(c["participant_id"], observed=True).transform("mean")).to_numpy()
     dof = int(len(c) - n - 1)
     denom = math.sqrt(float(xc @ xc) * float(yc @ yc))
     if denom == 0:
