@@ -103,7 +103,8 @@ def test_effect_size_cis_in_results(frames) -> None:
 
 
 def test_report_gives_the_gg_corrected_h1_test_when_sphericity_is_rejected() -> None:
-    from cfteach.analysis.report import _gg_sentence, fmt_F
+    from cfteach.analysis.report_format import fmt_F
+    from cfteach.analysis.report_h1 import _gg_sentence
 
     rm = {"F": 10.0, "df1": 2.0, "df2": 100.0, "p": 1e-4, "p_gg": 3e-4, "eps_gg": 0.8}
     assert _gg_sentence({**rm, "mauchly_p": 0.2}) == ""
@@ -112,7 +113,8 @@ def test_report_gives_the_gg_corrected_h1_test_when_sphericity_is_rejected() -> 
 
 
 def test_mixed_interaction_sentence_uses_gg_when_sphericity_is_rejected(frames) -> None:
-    from cfteach.analysis.report import _within_test, fmt_F
+    from cfteach.analysis.report_format import fmt_F
+    from cfteach.analysis.report_groups import _within_test
 
     inter = S.mixed_anova(frames, "counterfactual")["effects"]["interaction"]
     assert inter["mauchly_p"] is not None

@@ -5,8 +5,9 @@
 and `synthetic.generate` for simulated exports with planted effects.
 """
 
+from cfteach.analysis.errors import ExportError
 from cfteach.analysis.exclusions import ExclusionConfig, apply_exclusions
-from cfteach.analysis.io import ExportError, StudyExport, load_export, write_export
+from cfteach.analysis.io import StudyExport, load_export, write_export
 from cfteach.analysis.pipeline import AnalysisConfig, analyze, compute_results
 from cfteach.analysis.synthetic import SyntheticConfig, generate
 

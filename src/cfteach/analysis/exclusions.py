@@ -9,6 +9,7 @@ of IDs can be passed with its own reason.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -67,7 +68,7 @@ def quality_flags(
     `min_minutes`, and participants who needed at least `practice_attempts` practice tries."""
     if not {"started_at", "completed_at"} <= set(participants.columns):
         return pd.DataFrame(columns=EXCLUSION_COLUMNS)
-    minutes = session_minutes(participants)
+    minutes = session_minutes(participants).to_dict()  # by the participants' index labels
     rows = []
     for i, p in participants.iterrows():
         if pd.notna(minutes[i]) and minutes[i] < min_minutes:
@@ -76,6 +77,12 @@ def quality_flags(
         if pd.notna(tries) and int(tries) >= practice_attempts:
             rows.append(_row(p, "practice_attempts", f"{int(tries)} practice attempts"))
     return pd.DataFrame(rows, columns=EXCLUSION_COLUMNS)
+
+
+def _at(table: pd.DataFrame, p: pd.Series, column: str) -> float:
+    """A participant's number in an outlier table indexed by participant_id (pandas types
+    `.at` as any scalar; these columns are numeric)."""
+    return cast(float, table.at[p["participant_id"], column])
 
 
 def _row(p: pd.Series, rule: str, reason: str) -> dict[str, str]:
@@ -185,7 +192,8 @@ def missing_responses(
     doms = _domains(export, participants)
     t = export.tests[export.tests["participant_id"].isin(doms)]
     per: dict[str, dict[tuple[str, str], int]] = {}
-    for (pid, dom, d), n in t.groupby(["participant_id", "domain", "difficulty"]).size().items():
+    sizes = t.groupby(["participant_id", "domain", "difficulty"]).size()
+    for (pid, dom, d), n in zip(sizes.index, sizes, strict=True):
         per.setdefault(pid, {})[(dom, d)] = int(n)
     out: dict[str, str] = {}
     for pid, domains in doms.items():
@@ -290,10 +298,10 @@ def apply_exclusions(
             remaining["participant_id"].isin(agg.index),
             "aggregate_outlier",
             lambda p: (
-                f"proportion correct {agg.at[p['participant_id'], 'value']:.3f} < "
-                f"{agg.at[p['participant_id'], 'threshold']:.3f} (mean "
-                f"{agg.at[p['participant_id'], 'mean']:.3f} - {cfg.aggregate_sd:g} SD "
-                f"{agg.at[p['participant_id'], 'sd']:.3f})"
+                f"proportion correct {_at(agg, p, 'value'):.3f} < "
+                f"{_at(agg, p, 'threshold'):.3f} (mean "
+                f"{_at(agg, p, 'mean'):.3f} - {cfg.aggregate_sd:g} SD "
+                f"{_at(agg, p, 'sd'):.3f})"
             ),
         )
     if cfg.aggregate_mad is not None:
@@ -306,10 +314,10 @@ def apply_exclusions(
             remaining["participant_id"].isin(mad.index),
             "aggregate_mad_outlier",
             lambda p: (
-                f"proportion correct {mad.at[p['participant_id'], 'value']:.3f} < "
-                f"{mad.at[p['participant_id'], 'threshold']:.3f} (median "
-                f"{mad.at[p['participant_id'], 'mean']:.3f} - {cfg.aggregate_mad:g} MAD "
-                f"{mad.at[p['participant_id'], 'sd']:.3f})"
+                f"proportion correct {_at(mad, p, 'value'):.3f} < "
+                f"{_at(mad, p, 'threshold'):.3f} (median "
+                f"{_at(mad, p, 'mean'):.3f} - {cfg.aggregate_mad:g} MAD "
+                f"{_at(mad, p, 'sd'):.3f})"
             ),
         )
     if cfg.item_sd is not None and cfg.item_count_sd is not None:
@@ -330,11 +338,11 @@ def apply_exclusions(
             remaining["participant_id"].isin(items.index),
             "item_outlier",
             lambda p: (
-                f"{int(items.at[p['participant_id'], 'value'])} test rewards more than "
+                f"{int(_at(items, p, 'value'))} test rewards more than "
                 f"{cfg.item_sd:g} SD below the item mean; more than "
-                f"{items.at[p['participant_id'], 'threshold']:.2f} (mean "
-                f"{items.at[p['participant_id'], 'mean']:.2f} + {cfg.item_count_sd:g} SD "
-                f"{items.at[p['participant_id'], 'sd']:.2f})"
+                f"{_at(items, p, 'threshold'):.2f} (mean "
+                f"{_at(items, p, 'mean'):.2f} + {cfg.item_count_sd:g} SD "
+                f"{_at(items, p, 'sd'):.2f})"
             ),
         )
     table = pd.DataFrame(out, columns=EXCLUSION_COLUMNS)

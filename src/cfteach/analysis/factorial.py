@@ -133,13 +133,13 @@ def full_anova(cells: pd.DataFrame, dv: str = "optimal") -> dict[str, Any]:
     eps = sph["eps_gg"]
     rejected = sph["mauchly_p"] is not None and sph["mauchly_p"] < ALPHA_SPHERICITY
     terms = []
-    for factors, ss in ss_b.items():
+    for factors, ss_term in ss_b.items():
         if not factors:
             continue
-        terms.append(_row(_term_name(factors), ss, 1, ssr_b, df_b, None, False, tiny))
-    for factors, ss in ss_w.items():
+        terms.append(_row(_term_name(factors), ss_term, 1, ssr_b, df_b, None, False, tiny))
+    for factors, ss_term in ss_w.items():
         name = _term_name((*factors, WITHIN))
-        terms.append(_row(name, ss, k - 1, ssr_w, df_w, eps, rejected, tiny))
+        terms.append(_row(name, ss_term, k - 1, ssr_w, df_w, eps, rejected, tiny))
     order = [
         "counterfactual",
         "feature_scaffolding",

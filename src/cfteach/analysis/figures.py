@@ -6,6 +6,7 @@ Error bars are 95% t-intervals of the mean over participants, computed in `stats
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -54,7 +55,7 @@ def _save(fig: plt.Figure, out_dir: Path, stem: str) -> list[str]:
 
 def interaction_plot(results: dict[str, Any], out_dir: Path) -> list[str]:
     """Mean proportion optimal by difficulty x each between factor, with 95% CIs."""
-    panels = [
+    panels: list[tuple[str, str, Mapping[Any, str]]] = [
         ("counterfactual", "Counterfactual scaffolding", CF_LABELS),
         ("feature_scaffolding", "Feature scaffolding", FS_LABELS),
         ("condition", "Condition", CONDITION_LABELS),
@@ -283,7 +284,7 @@ def exploratory_plot(
 ) -> list[str]:
     """Per-participant demonstration plays and test time per optimal step, by condition,
     with the one-way ANOVA by condition in each panel's title."""
-    from cfteach.analysis.report import fmt_F
+    from cfteach.analysis.report_format import fmt_F
 
     s = frames.subjects
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))

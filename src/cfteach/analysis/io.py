@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from cfteach.analysis.errors import ExportError
+
 CONDITIONS = ("baseline", "feature_only", "counterfactual_only", "proposed")
 DIFFICULTIES = ("low", "medium", "high")
 STATUSES = ("completed", "screened_out", "declined", "abandoned", "in_progress")
@@ -90,10 +92,6 @@ RANGES = {
     ("likert.csv", "value"): (1, 5),
     ("participants.csv", "test_set"): (0, 2),
 }
-
-
-class ExportError(ValueError):
-    """A study export that cannot be analysed: the message names the file and column."""
 
 
 @dataclass(frozen=True)
@@ -191,6 +189,7 @@ def load_export(export_dir: str | Path, keep_sessions: list[str] | None = None) 
     tests = read_table(d / "test_responses.csv", "test_responses.csv")
     likert = read_table(d / "likert.csv", "likert.csv")
     demos = read_table(d / "demo_views.csv", "demo_views.csv")
+    # imported here: validate pulls in cfteach.mdp, which reading the CSVs does not need
     from cfteach.analysis import validate
 
     for fname, df in (

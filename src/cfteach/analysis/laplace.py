@@ -113,7 +113,7 @@ class _Factor:
 
     def mr(self, ur: np.ndarray) -> np.ndarray:
         """The later factors' part of M u (vector or matrix u)."""
-        out = 0.0
+        out = np.zeros(())  # a 0-d zero: the sum is an array from its first term on
         for k, tk in enumerate(self.th):
             out = out + tk * ur[self.rest[:, k]]
         return out if self.th.size else np.zeros((len(self.code0), *ur.shape[1:]))

@@ -178,7 +178,7 @@ def write_power_report(table: pd.DataFrame, out_dir: Any, alpha: float = 0.05) -
         "| N | " + " | ".join(HYPOTHESES[h][1] for h in wide.columns) + " |",
         "|---|" + "---|" * len(wide.columns),
     ]
-    for n, _ in wide.iterrows():
+    for n in wide.index:
         lines.append(
             f"| {n} | "
             + " | ".join(_pct_ci(cell.loc[(n, h)]) for h in wide.columns)

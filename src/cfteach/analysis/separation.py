@@ -31,7 +31,7 @@ def _lp(c: np.ndarray, a_ub: np.ndarray) -> float:
         bounds=[(-1.0, 1.0)] * len(c),
         method="highs",
     )
-    return float(-res.fun) if res.status == 0 else 0.0
+    return float(-res.fun) if res.status == 0 and res.fun is not None else 0.0
 
 
 def separation(y: np.ndarray, x: np.ndarray, names: list[str]) -> dict[str, Any]:
@@ -63,7 +63,7 @@ def separation(y: np.ndarray, x: np.ndarray, names: list[str]) -> dict[str, Any]
         bounds=[(-1.0, 1.0)] * x.shape[1] + [(0.0, 1.0)],
         method="highs",
     )
-    complete = res.status == 0 and -res.fun > _TOL
+    complete = res.status == 0 and res.fun is not None and -res.fun > _TOL
     return {
         "separated": True,
         "kind": "complete" if complete else "quasi-complete",

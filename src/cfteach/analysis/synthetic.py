@@ -24,6 +24,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -112,7 +113,7 @@ def generate(config: SyntheticConfig | None = None) -> StudyExport:
     cfg = config or SyntheticConfig()
     rng = np.random.default_rng(cfg.seed)
     items = _items(np.random.default_rng([cfg.seed, 1]))
-    by_set: dict[tuple[str, int], list] = {}
+    by_set: dict[tuple[Any, Any], list] = {}  # (domain, test_set) as itertuples gives them
     for it in items.itertuples(index=False):
         by_set.setdefault((it.domain, it.test_set), []).append(it)
     n = cfg.n_participants

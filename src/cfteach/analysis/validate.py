@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from cfteach.analysis.io import ExportError
+from cfteach.analysis.errors import ExportError
 from cfteach.mdp.scoring import optimal_mask
 
 #: file -> the columns that identify one row (a second row with the same key is a duplicate).

@@ -11,6 +11,7 @@ import sys
 
 import typer
 from typer.core import TyperGroup
+from typer.models import CommandInfo, TyperInfo
 
 from cfteach.cli._aliases import rewrite
 
@@ -48,7 +49,7 @@ def _no_broken_words() -> None:
                 kw.update(break_long_words=False, break_on_hyphens=False)
                 super().__init__(*args, **kw)
 
-        module.TextWrapper = _WholeWords
+        setattr(module, "TextWrapper", _WholeWords)  # noqa: B010 (mypy: not a declared attribute)
 
 
 _no_broken_words()
@@ -119,7 +120,11 @@ def _first_sentence(text: str | None) -> str | None:
 
 def _whole_summaries(typer_app: typer.Typer) -> None:
     """Give every command and group, at every level, its whole first sentence as summary."""
-    for info in [*typer_app.registered_commands, *typer_app.registered_groups]:
+    infos: list[CommandInfo | TyperInfo] = [
+        *typer_app.registered_commands,
+        *typer_app.registered_groups,
+    ]
+    for info in infos:
         cb = getattr(info, "callback", None)
         sub = getattr(info, "typer_instance", None)
         if not info.short_help:

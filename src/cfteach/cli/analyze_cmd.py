@@ -6,7 +6,7 @@ export to DIR/export). Heavy imports happen inside the command so `cfteach --hel
 """
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import typer
 
@@ -28,7 +28,7 @@ def _read_manual(path: Path) -> dict[str, str]:
     }
 
 
-def _usage_error(message: str) -> None:
+def _usage_error(message: str) -> NoReturn:
     """A one-line usage error (exit code 2), the same at any terminal width."""
     typer.echo(f"Error: {message}", err=True)
     raise typer.Exit(code=2)
@@ -274,6 +274,7 @@ def analyze(
             authors_tukey=authors_tukey,
             keep_sessions=tuple(keep_session or ()),
         )
+        assert export_dir is not None  # exactly one of EXPORT_DIR and --synthetic (above)
         with _progress.busy("analysing"):
             results = run(export_dir, out, cfg, note=note)
     except (typer.Exit, click.ClickException):
@@ -290,7 +291,7 @@ def analyze(
         typer.echo(f"report: {out / 'report.html'}  ({out / 'report.md'}, {out / 'results.json'})")
         return
     rm = results["h1"]["rm_anova"]
-    from cfteach.analysis.report import fmt_F
+    from cfteach.analysis.report_format import fmt_F
 
     h1 = (
         f"not computed ({rm['skipped']})"
@@ -359,7 +360,7 @@ def power(
     from cfteach.cli._lists import split_list
 
     try:
-        ns = sorted({int(x) for x in split_list(n) or [24, 48, 96, 144, 216]})
+        ns = sorted({int(x) for x in split_list(n) or ["24", "48", "96", "144", "216"]})
     except ValueError:
         _usage_error(f"--n takes whole numbers of participants, got {', '.join(n or [])}")
     if ns[0] < MIN_PARTICIPANTS:

@@ -54,7 +54,7 @@ def register(app: typer.Typer) -> None:
             if free is not None and free / 2 < est.teach_peak_bytes <= free:
                 typer.echo(f"  warning: teaching needs about {human_bytes(est.teach_peak_bytes)}"
                            f", more than half of the free memory: {shrink_advice(dom, est)}")
-            if too_big and not force:
+            if free is not None and too_big and not force:
                 typer.echo(f"  error: teaching needs about {human_bytes(est.teach_peak_bytes)}"
                            f" of memory, {human_bytes(free)} is free: "
                            f"{shrink_advice(dom, est)}; or pass --force (planning checks "

@@ -72,8 +72,7 @@ def reproduce(
             results = load_results(out)
         except (OSError, ValueError) as exc:
             raise typer.BadParameter(str(exc), param_hint="--out") from exc
-        index = build_report(out, results, meta=load_meta(out))
-        typer.echo(f"Report: {index}")
+        typer.echo(f"Report: {build_report(out, results, meta=load_meta(out))}")
         return
     if profile not in PROFILES:
         fail(f"--profile: unknown value {profile!r} (allowed: {', '.join(PROFILES)})"

@@ -6,6 +6,7 @@ commands so `cfteach --help` stays fast.
 
 import json
 from pathlib import Path
+from types import ModuleType
 from typing import Annotated, Any
 
 import typer
@@ -75,10 +76,13 @@ def _envs_of(dom: Any, envs: str | None) -> list[int] | None:
 
 def _show(cur_json: dict[str, Any], domain: Any) -> None:
     """Each demonstration as text, with the renderer if it is available."""
+    render: ModuleType | None
     try:
-        from cfteach import render
+        from cfteach import render as render_module
     except ImportError:  # pragma: no cover - render is part of the package
         render = None
+    else:
+        render = render_module
     labels = dict(zip(domain.feature_names, domain.feature_labels, strict=True))
 
     def masked(name: str | None) -> str:  # the legend's word first, the JSON's name after

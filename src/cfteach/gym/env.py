@@ -15,23 +15,27 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from enum import IntEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+if TYPE_CHECKING:
+    from cfteach.render import Layout
+
 OBSERVATION_TYPES = ("index", "state")
 
 #: The study's keys (arrows, `p` pick up, `d` drop) as SDL2/pygame key codes, so
 #: `gymnasium.utils.play.play(env, wait_on_player=True)` plays like the study's test games.
-STUDY_KEYS = {"up": 0x40000052, "down": 0x40000051, "left": 0x40000050, "right": 0x4000004F,
-              "pickup": "p", "dropoff": "d"}
+STUDY_KEYS: dict[str, int | str] = {
+    "up": 0x40000052, "down": 0x40000051, "left": 0x40000050, "right": 0x4000004F,
+    "pickup": "p", "dropoff": "d"}
 #: `KeyboardEvent.key` names (what an `ActionSpec.key` holds) without a printable face, as
 #: SDL2/pygame key codes; a one-character key stays that character.
-SDL_KEYS = {"ArrowUp": 0x40000052, "ArrowDown": 0x40000051, "ArrowLeft": 0x40000050,
-            "ArrowRight": 0x4000004F, "Enter": 13, "Escape": 27, "Backspace": 8, "Tab": 9,
-            " ": " "}
+SDL_KEYS: dict[str, int | str] = {
+    "ArrowUp": 0x40000052, "ArrowDown": 0x40000051, "ArrowLeft": 0x40000050,
+    "ArrowRight": 0x4000004F, "Enter": 13, "Escape": 27, "Backspace": 8, "Tab": 9, " ": " "}
 
 
 def sdl_key(key: str) -> int | str:
@@ -96,6 +100,7 @@ class GridEnv(gymnasium.Env):
     """
 
     metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 4}
+    action_space: spaces.Discrete  # one discrete action per domain action (gymnasium: Space)
 
     def __init__(
         self,
@@ -128,7 +133,11 @@ class GridEnv(gymnasium.Env):
         self.feature_names = tuple(self.domain.feature_names)
         self.weights = np.asarray(self.domain.weights, dtype=float)
         self.action_meanings = list(self.domain.actions)
-        self.actions = IntEnum("Actions", {a: i for i, a in enumerate(self.action_meanings)})
+        # the members are the domain's actions, known only at run time, which mypy's
+        # functional-Enum support cannot follow
+        self.actions = IntEnum(  # type: ignore[misc]
+            "Actions", {a: i for i, a in enumerate(self.action_meanings)}
+        )
         self.action_space = spaces.Discrete(len(self.action_meanings))
         self._set_instance(self.domain.instance(
             0 if env_code is None or self.random_instance
@@ -151,7 +160,7 @@ class GridEnv(gymnasium.Env):
         self._states = list(instance.states())
         self._index = {s: i for i, s in enumerate(self._states)}
         self.terminal_observation = len(self._states)
-        self._layout = None
+        self._layout: Layout | None = None
         self._P: dict[int, dict[int, list[tuple[float, int, float, bool]]]] | None = None
 
     def _parse_start(self, start: Any) -> Any:
