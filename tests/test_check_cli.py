@@ -130,7 +130,7 @@ def test_check_is_quiet_about_a_domain_whose_goal_is_worth_walking_to() -> None:
 def test_no_traceback_reaches_the_user_from_the_console_script(tmp_path: Path) -> None:
     # An unexpected failure inside a command becomes one line (CFTEACH_DEBUG shows it all).
     code = ("import cfteach.cli as c, sys\n"
-            "import cfteach.domains.check as k\n"
+            "import cfteach.mdp.soundness as k\n"
             "def boom(*a, **kw): raise RuntimeError('boom')\n"
             "k.check_domain = boom\n"
             "sys.argv = ['cfteach', 'check', 'skateboard']\n"

@@ -1,6 +1,6 @@
-"""cfteach.domains.check: a domain that cannot be taught gives a named error before planning
-(unreachable goals, reward loops, w* outside the beliefs, too few features), and every
-curriculum's final belief contains w*."""
+"""cfteach.domains.check and cfteach.mdp.soundness: a domain that cannot be taught gives a
+named error before planning (unreachable goals, reward loops, w* outside the beliefs, too
+few features), and every curriculum's final belief contains w*."""
 
 from __future__ import annotations
 
@@ -14,7 +14,8 @@ import pytest
 
 from cfteach import domains
 from cfteach.domains import from_dict
-from cfteach.domains.check import DomainCheckError, check_domain, errors_of
+from cfteach.domains.check import DomainCheckError, errors_of
+from cfteach.mdp.soundness import check_domain
 from cfteach.teaching import select_tests, teach
 from cfteach.teaching.records import BeliefError
 
@@ -122,8 +123,8 @@ def test_a_random_domain_loads_by_the_name_its_json_files_carry() -> None:
 def test_states_that_cannot_reach_the_goal_are_named() -> None:
     from dataclasses import replace
 
-    from cfteach.domains.check import planning_findings
     from cfteach.mdp import compile_domain, value_iteration
+    from cfteach.mdp.soundness import planning_findings
 
     dom = from_dict(corridor())
     batch = compile_domain(dom)

@@ -20,6 +20,7 @@ import numpy as np
 from cfteach.domains import Domain, Instance, State
 from cfteach.mdp import MDPBatch, compile_domain, greedy_actions, value_iteration
 from cfteach.mdp.rollout import MAX_STEPS, rollout_features
+from cfteach.mdp.soundness import require_sound
 
 PROFILES = ("reference", "default")
 
@@ -133,8 +134,6 @@ def demo_set(domain: Domain, profile: str = "default") -> DemoSet:
 
 
 def _build(domain: Domain, profile: str) -> DemoSet:
-    from cfteach.domains.check import require_sound
-
     require_sound(domain)  # named errors (unreachable goal, reward loop, ...) before planning
     batch = compile_domain(domain)
     w = np.asarray(domain.weights, dtype=float)

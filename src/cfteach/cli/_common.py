@@ -104,8 +104,9 @@ def load_domain(name: str, *, force: bool = False, sphere: bool = False,
     work; the size estimate and the planning checks then cover only those).
     """
     from cfteach import domains
-    from cfteach.domains.check import errors_of, require_sound, static_findings
+    from cfteach.domains.check import errors_of, static_findings
     from cfteach.domains.size import available_memory, estimate_size, human_bytes, shrink_advice
+    from cfteach.mdp.soundness import require_sound
 
     try:
         dom = domains.load(name)

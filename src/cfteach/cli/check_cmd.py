@@ -27,13 +27,14 @@ def register(app: typer.Typer) -> None:
         checks anyway). Exits 1 if a domain has an error."""
         from cfteach import domains
         from cfteach.cli._common import fail
-        from cfteach.domains.check import CHECKS, check_domain, errors_of, static_findings
+        from cfteach.domains.check import CHECKS, errors_of, static_findings
         from cfteach.domains.size import (
             available_memory,
             estimate_size,
             human_bytes,
             shrink_advice,
         )
+        from cfteach.mdp.soundness import check_domain
 
         bad = 0
         for name in names:
