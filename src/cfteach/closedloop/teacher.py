@@ -131,6 +131,7 @@ class ClosedLoopTeacher:
         self._no_lesson = probes.lesson_blocked(self.pool, st.n_probes)
         self._usable_lessons = np.array([any(int(d) not in self._no_lesson for d in m)
                                          for m in self.pool.lessons.members], dtype=bool)
+        self._backbone = self._backbone_demos()
         self._progress = [0.0]
         self._prediction_memo: tuple[Any, dict[str, float | None]] = (None, {})
 
@@ -322,12 +323,15 @@ class ClosedLoopTeacher:
                 return check
             self.stop_reason = "no diagnostic test left"
             return None
-        if self._passes_in_a_row() >= st.min_passes:
+        backbone = self._backbone_lesson()
+        if backbone is None and self._passes_in_a_row() >= st.min_passes:
             know = self.knowledge()
             if know is not None and know >= st.stop_threshold:
                 self.stop_reason = f"knowledge on the probes {know:.3f}"
                 return None
-        lesson = self._lesson(self._open_failure())
+        failed = self._open_failure()
+        lesson = self._remedial(failed) if failed is not None else None
+        lesson = lesson or backbone or self._lesson()
         if lesson is not None:
             return lesson
         if last is None or last.kind != "test":
@@ -338,9 +342,13 @@ class ClosedLoopTeacher:
         return None
 
     def _passes_in_a_row(self) -> int:
-        """Tests passed since the last failed one."""
+        """Tests passed since the last failed one and the last backbone lesson: the
+        backbone's own diagnostics do not end a session (the teacher checks on fresh tests
+        once it is covered)."""
         n = 0
         for it in reversed(self.items):
+            if it.purpose == "backbone":
+                break
             if it.kind == "test":
                 if not self.outcomes[it.index].correct:
                     break
@@ -378,28 +386,71 @@ class ClosedLoopTeacher:
                     None)
         return tie_break(self.pool.ds, fresh or members, prev, self._rng())
 
-    def _lesson(self, failed: Item | None) -> Item | None:
-        st = self.settings
-        if not self.pool.lessons.n_sets:
+    def _backbone_demos(self) -> list[int]:
+        """The pool's backbone as lessons this teacher may show: a demo whose start is a
+        post-test's or a probe's is replaced by another demo with the same constraints
+        (dropped when there is none)."""
+        out = []
+        for d in self.pool.backbone:
+            if d in self._no_lesson:
+                s = int(self.pool.lessons.slot[d])
+                same = self.pool.lessons.members[s] if s >= 0 else []
+                alt = [int(m) for m in same if int(m) not in self._no_lesson]
+                if not alt:
+                    continue
+                d = alt[0]
+            out.append(d)
+        return out
+
+    def _backbone_lesson(self) -> Item | None:
+        """The next backbone lesson not yet shown as one (None when all are shown, or the
+        next would repeat a demonstration more than `max_repeat` times in a row)."""
+        k = sum(it.purpose == "backbone" for it in self.items)
+        if k >= len(self._backbone):
             return None
-        blocked = self._blocked_lessons()
+        d = self._backbone[k]
+        if d in self._blocked_lessons():
+            return None
+        return Item(len(self.items), "demonstration", "backbone", d)
+
+    def _usable(self, blocked: set[int]) -> np.ndarray:
+        """bool per lesson row set: it has a member that may be shown now."""
         usable = self._usable_lessons.copy()
         for d in blocked - self._no_lesson:  # a repeated demo's set, if it has no other
             s = int(self.pool.lessons.slot[d])
             if s >= 0 and all(int(m) in blocked for m in self.pool.lessons.members[s]):
                 usable[s] = False
+        return usable
+
+    def _remedial(self, failed: Item) -> Item | None:
+        """A lesson aimed at the particles that still fail test `failed`."""
+        if not self.pool.lessons.n_sets:
+            return None
+        blocked = self._blocked_lessons()
+        usable = self._usable(blocked)
         if not usable.any():
             return None
         sat = self.pool.lessons.satisfied(self.belief.particles)  # [K, P]
         w = self.belief.weights
-        if failed is not None:  # aim at the particles that still fail the test
-            fails = self._failing(failed.demo)
-            mass = np.where(usable, (~sat & fails[None]).astype(float) @ w, -1.0)
-            if mass.max() > st.min_gain:
-                best = np.flatnonzero(mass >= mass.max() - 1e-12)
-                d = self._pick(best, blocked)
-                return Item(len(self.items), "demonstration", "remedial", d,
-                            about=failed.index, gain=float((~sat[best[0]]).astype(float) @ w))
+        fails = self._failing(failed.demo)
+        mass = np.where(usable, (~sat & fails[None]).astype(float) @ w, -1.0)
+        if mass.max() <= self.settings.min_gain:
+            return None
+        best = np.flatnonzero(mass >= mass.max() - 1e-12)
+        d = self._pick(best, blocked)
+        return Item(len(self.items), "demonstration", "remedial", d,
+                    about=failed.index, gain=float((~sat[best[0]]).astype(float) @ w))
+
+    def _lesson(self) -> Item | None:
+        st = self.settings
+        if not self.pool.lessons.n_sets:
+            return None
+        blocked = self._blocked_lessons()
+        usable = self._usable(blocked)
+        if not usable.any():
+            return None
+        sat = self.pool.lessons.satisfied(self.belief.particles)  # [K, P]
+        w = self.belief.weights
         gain = np.where(usable, (~sat).astype(float) @ w, -1.0)
         top = gain.max()
         if top < st.min_gain:

@@ -23,17 +23,21 @@ CLOSED_LOOP = "closed_loop"
 EQUAL_BUDGET = "proposed_equal_budget"
 #: Per learner, `proposed` shown as many items as that learner's closed-loop session.
 EQUAL_ITEMS = "proposed_equal_items"
+#: The open-loop curriculum every closed-loop session covers (docs/closed-loop.md).
+BACKBONE = "proposed"
 
 
 @cache
-def _pool(domain_ref: Any, profile: str, seed: int, held_key: str, human_models: int):
+def _pool(domain_ref: Any, profile: str, seed: int, held_key: str, human_models: int,
+          backbone_key: str = ""):
     """The lesson pool of one (domain, replication), built once per worker process."""
     from cfteach.closedloop import build_pool
     from cfteach.simulate.sweep import load_domain
 
     held = [int(x) for x in held_key.split(",") if x]
+    backbone = [int(x) for x in backbone_key.split(",") if x]
     return build_pool(load_domain(domain_ref), profile=profile, human_models=human_models,
-                      seed=seed, held_out=held)
+                      seed=seed, held_out=held, backbone=backbone)
 
 
 def held_key(domain_ref: Any, profile: str, tests: dict[str, Any]) -> str:
@@ -44,6 +48,19 @@ def held_key(domain_ref: Any, profile: str, tests: dict[str, Any]) -> str:
 
     ds = demo_set(load_domain(domain_ref), profile)
     return ",".join(str(d) for d in held_out_demos(ds, tests))
+
+
+def backbone_key(domain_ref: Any, profile: str, curriculum: dict[str, Any] | None) -> str:
+    """The backbone curriculum's demonstrations as a hashable key of demo indices, in
+    order ("" without one)."""
+    if not curriculum:
+        return ""
+    from cfteach.bec import demo_set
+    from cfteach.closedloop.pool import demo_indices
+    from cfteach.simulate.sweep import load_domain
+
+    ds = demo_set(load_domain(domain_ref), profile)
+    return ",".join(str(d) for d in demo_indices(ds, curriculum["demos"]))
 
 
 def run_session(teacher: Any, learners: Any) -> dict[str, int]:
@@ -68,7 +85,7 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
 
     dom = load_domain(chunk["domain"])
     pool = _pool(chunk["domain"], chunk["profile"], chunk["material_seed"], chunk["held_key"],
-                 chunk["pool_human_models"])
+                 chunk["pool_human_models"], chunk.get("backbone_key", ""))
     settings = TeacherSettings(**chunk.get("teacher", {}))
     ss = np.random.SeedSequence(chunk["entropy"])
     keys = ("correct", "reward", "finished", "contains_w_star", "belief_area",

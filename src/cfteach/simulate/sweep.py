@@ -24,9 +24,11 @@ import pandas as pd
 
 from cfteach.jsonable import to_jsonable
 from cfteach.simulate.closed_loop import (
+    BACKBONE,
     CLOSED_LOOP,
     EQUAL_BUDGET,
     EQUAL_ITEMS,
+    backbone_key,
     closed_loop_chunk,
     equal_budget_override,
     equal_items_override,
@@ -132,6 +134,8 @@ def teach_material(domains: list[str | tuple], conditions: list[str], seeds: lis
     from cfteach.parallel import map_chunks
 
     taught = [c for c in conditions if c not in (NO_TEACHING, CLOSED_LOOP)]
+    if CLOSED_LOOP in conditions and BACKBONE not in taught:  # the closed loop's backbone
+        taught.append(BACKBONE)
     chunks = [{"domain": d, "seed": s, "conditions": taught, "profile": profile,
                "human_models": human_models, "per_level": per_level,
                "include_candidates": include_candidates, "known": known}
@@ -361,6 +365,8 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
                 demos = []
                 extra = {"closed_loop": True, "profile": profile, "material_seed": mat.seed,
                          "held_key": held_key(mat.domain, profile, mat.tests),
+                         "backbone_key": backbone_key(mat.domain, profile,
+                                                      mat.curricula.get(BACKBONE)),
                          "pool_human_models": 4 * human_models, "teacher": teacher or {}}
             elif cond in mat.curricula or demos_override:
                 demos = mat.curricula.get(cond, {}).get("demos", [])
