@@ -70,7 +70,7 @@ class RowIndex:
                                      (owner, inverse.ravel())), shape=(len(set_rows), len(uniq)))
         else:
             uniq = np.zeros((0, rs.F))
-            inc = sparse.csr_matrix((0, 0), dtype=np.float32)
+            inc = sparse.csr_matrix(np.zeros((0, 0), dtype=np.float32))
         return cls(uniq.astype(float), inc, slot, [np.asarray(m) for m in members])
 
     @property
