@@ -2,7 +2,8 @@
 domains, over whole simulated sessions (the study server decides while the participant
 watches, so p99 must stay well under a second; target < 300 ms).
 
-Per domain: build the lesson pool once (timed separately: the server does it at start-up),
+Per domain: build the lesson pool once (timed separately: the server does it at start-up;
+with `proposed`'s curriculum as its backbone, as the simulation's teacher has),
 then run `--sessions` sessions with simulated learners and time every decision and update
 (the learner's own thinking is not timed).
 
@@ -23,6 +24,8 @@ def main() -> None:
     ap.add_argument("--domains", default="delivery,tiles,skateboard")
     ap.add_argument("--sessions", type=int, default=5)
     ap.add_argument("--learner", default="inattentive")
+    ap.add_argument("--no-backbone", action="store_true",
+                    help="build the pool without proposed's curriculum as its backbone")
     ap.add_argument("--teacher", default="",
                     help="TeacherSettings as field=value,... (e.g. model=fixed)")
     args = ap.parse_args()
@@ -40,7 +43,8 @@ def main() -> None:
         t0 = time.perf_counter()
         cur = teaching.teach(dom, "proposed")
         tests = teaching.select_tests(dom, training=[cur])
-        pool = build_pool(dom, held_out=tests)
+        pool = build_pool(dom, held_out=tests,
+                          backbone=None if args.no_backbone else cur.to_json()["demos"])
         t_pool = time.perf_counter() - t0
         times, items = [], []
         for s in range(args.sessions):

@@ -316,7 +316,8 @@ class ParticleBelief:
                            and np.array_equal(np.round(ans, _KEY_DECIMALS) + 0.0, key))
         if correct and not finished:
             raise ValueError("correct: an unfinished answer cannot be correct")
-        own = [ans] if finished and not correct else []
+        # a finished wrong answer has its feature counts (checked above)
+        own = [ans] if finished and not correct and ans is not None else []
         cand = _dedupe(np.vstack([opt[None, :], *[a[None, :] for a in own], alts]))
         keys = np.round(cand, _KEY_DECIMALS) + 0.0
         if own:

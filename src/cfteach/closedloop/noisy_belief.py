@@ -79,7 +79,7 @@ class StepData:
     def x(self, points: np.ndarray) -> np.ndarray:
         """``Q_w(s, a)`` for every point, state and action: ``[P, G, A]``."""
         x = np.einsum("pf,gaf->pga", points, self.rows, optimize=True)
-        if self.alt is not None and len(self.alt):
+        if self.alt is not None and self.alt_action is not None and len(self.alt):
             g = np.flatnonzero(self.alt_action >= 0)
             a = self.alt_action[g]
             x[:, g, a] = np.maximum(x[:, g, a], points @ self.alt[g].T)
@@ -172,6 +172,8 @@ class NoisyBelief(ParticleBelief):
                         test_starts: np.ndarray) -> np.ndarray:
         """``[P, T]`` chance that each particle answers each test optimally (`region_sat`
         ``[P, T]``: its weights lie in the test's region; `data`: the optimal paths)."""
+        if data.optimal is None:
+            raise ValueError("p_optimal_paths: data needs the optimal actions (path_steps)")
         return self._p_optimal(data.x(self.particles), self._values(self.idx), data.optimal,
                                test_starts, region_sat)
 

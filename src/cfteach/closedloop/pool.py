@@ -70,7 +70,7 @@ class RowIndex:
                                      (owner, inverse.ravel())), shape=(len(set_rows), len(uniq)))
         else:
             uniq = np.zeros((0, rs.F))
-            inc = sparse.csr_matrix((0, 0), dtype=np.float32)
+            inc = sparse.csr_matrix(np.zeros((0, 0), dtype=np.float32))
         return cls(uniq.astype(float), inc, slot, [np.asarray(m) for m in members])
 
     @property
@@ -100,6 +100,7 @@ class LessonPool:
     lessons: RowIndex
     tests: RowIndex
     settings: dict[str, Any] = field(default_factory=dict)
+    backbone: tuple[int, ...] = ()  # lessons every session covers, in order (build_pool)
     cache: dict[Any, Any] = field(default_factory=dict, repr=False)  # probes, paths
 
     @property
@@ -123,8 +124,14 @@ def held_out_demos(ds: DemoSet, tests: Any) -> list[int]:
         pairs = [t for level in tests.get("tests", {}).values() for t in level]
     else:
         pairs = list(tests)
+    return sorted(set(demo_indices(ds, pairs)))
+
+
+def demo_indices(ds: DemoSet, items: Iterable[Any]) -> list[int]:
+    """Demo indices of demonstrations or tests (JSON with ``env_index``/``env_code`` and
+    ``start_state``, ``(env_index, state)`` pairs or indices), in order."""
     out = []
-    for t in pairs:
+    for t in items:
         if isinstance(t, int | np.integer):
             if not 0 <= int(t) < ds.D:
                 raise ValueError(f"held-out demo index {t} outside 0..{ds.D - 1}")
@@ -137,15 +144,17 @@ def held_out_demos(ds: DemoSet, tests: Any) -> list[int]:
             continue
         env, state = t
         out.append(ds.index(int(env), tuple(state)))
-    return sorted(set(out))
+    return out
 
 
 def build_pool(domain: Domain | str, *, profile: str = "default", human_models: int = 32,
-               seed: int = 0, held_out: Any = None) -> LessonPool:
+               seed: int = 0, held_out: Any = None, backbone: Any = None) -> LessonPool:
     """Precompute a domain's lessons and tests (see the module docstring).
 
     `held_out`: the post-teaching tests (a `TestSet`, its JSON or demo indices); they are
-    excluded from the diagnostic tests and used by the stopping rule.
+    never lessons nor diagnostic tests. `backbone`: an open-loop curriculum's
+    demonstrations (its JSON ``demos``, or demo indices), in order: the lessons every
+    session covers before the teacher may stop (docs/closed-loop.md, "The backbone").
     """
     if isinstance(human_models, bool) or not isinstance(human_models, int) or human_models < 1:
         raise ValueError(f"human_models must be an integer >= 1, got {human_models!r}")
@@ -163,4 +172,5 @@ def build_pool(domain: Domain | str, *, profile: str = "default", human_models: 
                       lesson_rows=cf, test_rows=joint, held_out=held,
                       lessons=RowIndex.build(cf, every), tests=RowIndex.build(joint, every),
                       settings={"human_models": human_models, "profile": profile,
-                                "seed": seed})
+                                "seed": seed},
+                      backbone=tuple(demo_indices(ds, backbone or ())))

@@ -49,10 +49,13 @@ def answer_steps(ds: DemoSet, env: int, states: Sequence[int], actions: Sequence
     return StepData(ds.dev_mu[env, visited].astype(float), np.vstack(counts_l))
 
 
-def path_steps(ds: DemoSet, demos: Sequence[int]) -> tuple[StepData, np.ndarray]:
+def path_steps(ds: DemoSet, demos: Sequence[int] | np.ndarray
+               ) -> tuple[StepData, np.ndarray]:
     """The robot's optimal path of each demo (a test's start): one group per state along
     it, with its optimal actions marked; and where each demo's groups start."""
-    rows, optimal, test_starts = [], [], []
+    rows: list[np.ndarray] = []
+    optimal: list[np.ndarray] = []
+    test_starts: list[int] = []
     for d in demos:
         env = int(ds.env[d])
         states = ds.states[d, :int(ds.length[d])]

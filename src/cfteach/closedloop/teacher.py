@@ -40,64 +40,14 @@ import numpy as np
 
 from cfteach.closedloop import probes
 from cfteach.closedloop.belief import ParticleBelief
+from cfteach.closedloop.items import KINDS, Item, Outcome, score_answer
 from cfteach.closedloop.noisy_belief import NoisyBelief
 from cfteach.closedloop.pool import LessonPool
 from cfteach.closedloop.settings import TeacherSettings
 from cfteach.closedloop.steps import answer_steps, path_steps
-from cfteach.mdp.scoring import optimal_mask
-from cfteach.teaching.records import demo_json
 from cfteach.teaching.visual import tie_break
 
 __all__ = ["ClosedLoopTeacher", "Item", "TeacherSettings"]
-
-KINDS = ("demonstration", "test", "feedback")
-
-
-@dataclass(frozen=True)
-class Item:
-    """One step of the conversation.
-
-    `kind`: ``demonstration`` (purpose ``lesson`` or ``remedial``), ``test`` (``diagnostic``)
-    or ``feedback``. `demo`: the DemoSet index shown (for a test: its start; for feedback:
-    the optimal answer from the failed test's start). `about`: for a diagnostic test the
-    lesson's item index, for feedback and remedial lessons the failed test's item index.
-    `answer`: for feedback, the learner's answer to that test (as observed).
-    """
-
-    index: int
-    kind: str
-    purpose: str
-    demo: int
-    about: int | None = None
-    answer: dict[str, Any] | None = None
-    predicted_optimal: float | None = None  # belief's P(optimal) for a test, when chosen
-    gain: float | None = None               # share of the belief a lesson would cut
-
-    def to_json(self, pool: LessonPool) -> dict[str, Any]:
-        """What a learner (or the study page) is shown, plus the bookkeeping fields."""
-        shown = demo_json(pool.ds, self.demo)
-        if self.kind == "test":
-            shown = {k: shown[k] for k in ("env_code", "env_index", "start_state")}
-            shown["optimal_reward"] = pool.ds.reward(self.demo)
-        out = {"index": self.index, "kind": self.kind, "purpose": self.purpose,
-               "demo": self.demo, "about": self.about, **shown}
-        if self.answer is not None:
-            out["answer"] = self.answer
-        if self.predicted_optimal is not None:
-            out["predicted_optimal"] = self.predicted_optimal
-        if self.gain is not None:
-            out["gain"] = self.gain
-        return out
-
-
-@dataclass
-class _Outcome:
-    correct: bool
-    finished: bool
-    mu: np.ndarray
-    states: list[int] | None = None   # visited before each move (when moves were given)
-    actions: list[int] | None = None
-
 
 @dataclass(eq=False)
 class ClosedLoopTeacher:
@@ -122,7 +72,7 @@ class ClosedLoopTeacher:
                                          temperature=st.temperature)
         self.items: list[Item] = []
         self.responses: list[dict[str, Any]] = []
-        self.outcomes: dict[int, _Outcome] = {}
+        self.outcomes: dict[int, Outcome] = {}
         self.stop_reason: str | None = None
         self._pending: Item | None = None
         self._used_tests: set[int] = set()
@@ -131,6 +81,7 @@ class ClosedLoopTeacher:
         self._no_lesson = probes.lesson_blocked(self.pool, st.n_probes)
         self._usable_lessons = np.array([any(int(d) not in self._no_lesson for d in m)
                                          for m in self.pool.lessons.members], dtype=bool)
+        self._backbone = self._backbone_demos()
         self._progress = [0.0]
         self._prediction_memo: tuple[Any, dict[str, float | None]] = (None, {})
 
@@ -162,12 +113,13 @@ class ClosedLoopTeacher:
         response = dict(response or {})
         ds = self.pool.ds
         if item.kind == "test":
-            outcome = self._score(item.demo, response)
+            outcome = score_answer(self.pool, item.demo, response)
             self._observe_answer(item.demo, outcome)
             self.outcomes[item.index] = outcome
             self._used_tests.add(item.demo)
         elif item.kind == "feedback":
             rows = [self.pool.lesson_rows.of(item.demo)]
+            assert item.about is not None  # feedback is always about a test
             wrong = self.outcomes[item.about]
             if wrong.finished:  # the optimal answer beats the learner's own
                 rows.append((ds.mu[item.demo] - wrong.mu)[None])
@@ -180,10 +132,10 @@ class ClosedLoopTeacher:
         self._pending = None
         self._progress.append(self._next_progress())
 
-    def _observe_answer(self, d: int, outcome: _Outcome) -> None:
+    def _observe_answer(self, d: int, outcome: Outcome) -> None:
         ds = self.pool.ds
         if isinstance(self.belief, NoisyBelief):
-            if outcome.actions is not None:
+            if outcome.actions is not None and outcome.states is not None:
                 self.belief.observe_steps(answer_steps(ds, int(ds.env[d]), outcome.states,
                                                        outcome.actions, outcome.finished))
             else:
@@ -322,12 +274,15 @@ class ClosedLoopTeacher:
                 return check
             self.stop_reason = "no diagnostic test left"
             return None
-        if self._passes_in_a_row() >= st.min_passes:
+        backbone = self._backbone_lesson()
+        if backbone is None and self._passes_in_a_row() >= st.min_passes:
             know = self.knowledge()
             if know is not None and know >= st.stop_threshold:
                 self.stop_reason = f"knowledge on the probes {know:.3f}"
                 return None
-        lesson = self._lesson(self._open_failure())
+        failed = self._open_failure()
+        lesson = self._remedial(failed) if failed is not None else None
+        lesson = lesson or backbone or self._lesson()
         if lesson is not None:
             return lesson
         if last is None or last.kind != "test":
@@ -338,9 +293,13 @@ class ClosedLoopTeacher:
         return None
 
     def _passes_in_a_row(self) -> int:
-        """Tests passed since the last failed one."""
+        """Tests passed since the last failed one and the last backbone lesson: the
+        backbone's own diagnostics do not end a session (the teacher checks on fresh tests
+        once it is covered)."""
         n = 0
         for it in reversed(self.items):
+            if it.purpose == "backbone":
+                break
             if it.kind == "test":
                 if not self.outcomes[it.index].correct:
                     break
@@ -378,28 +337,71 @@ class ClosedLoopTeacher:
                     None)
         return tie_break(self.pool.ds, fresh or members, prev, self._rng())
 
-    def _lesson(self, failed: Item | None) -> Item | None:
-        st = self.settings
-        if not self.pool.lessons.n_sets:
+    def _backbone_demos(self) -> list[int]:
+        """The pool's backbone as lessons this teacher may show: a demo whose start is a
+        post-test's or a probe's is replaced by another demo with the same constraints
+        (dropped when there is none)."""
+        out = []
+        for d in self.pool.backbone:
+            if d in self._no_lesson:
+                s = int(self.pool.lessons.slot[d])
+                same: list[int] = self.pool.lessons.members[s].tolist() if s >= 0 else []
+                alt = [int(m) for m in same if int(m) not in self._no_lesson]
+                if not alt:
+                    continue
+                d = alt[0]
+            out.append(d)
+        return out
+
+    def _backbone_lesson(self) -> Item | None:
+        """The next backbone lesson not yet shown as one (None when all are shown, or the
+        next would repeat a demonstration more than `max_repeat` times in a row)."""
+        k = sum(it.purpose == "backbone" for it in self.items)
+        if k >= len(self._backbone):
             return None
-        blocked = self._blocked_lessons()
+        d = self._backbone[k]
+        if d in self._blocked_lessons():
+            return None
+        return Item(len(self.items), "demonstration", "backbone", d)
+
+    def _usable(self, blocked: set[int]) -> np.ndarray:
+        """bool per lesson row set: it has a member that may be shown now."""
         usable = self._usable_lessons.copy()
         for d in blocked - self._no_lesson:  # a repeated demo's set, if it has no other
             s = int(self.pool.lessons.slot[d])
             if s >= 0 and all(int(m) in blocked for m in self.pool.lessons.members[s]):
                 usable[s] = False
+        return usable
+
+    def _remedial(self, failed: Item) -> Item | None:
+        """A lesson aimed at the particles that still fail test `failed`."""
+        if not self.pool.lessons.n_sets:
+            return None
+        blocked = self._blocked_lessons()
+        usable = self._usable(blocked)
         if not usable.any():
             return None
         sat = self.pool.lessons.satisfied(self.belief.particles)  # [K, P]
         w = self.belief.weights
-        if failed is not None:  # aim at the particles that still fail the test
-            fails = self._failing(failed.demo)
-            mass = np.where(usable, (~sat & fails[None]).astype(float) @ w, -1.0)
-            if mass.max() > st.min_gain:
-                best = np.flatnonzero(mass >= mass.max() - 1e-12)
-                d = self._pick(best, blocked)
-                return Item(len(self.items), "demonstration", "remedial", d,
-                            about=failed.index, gain=float((~sat[best[0]]).astype(float) @ w))
+        fails = self._failing(failed.demo)
+        mass = np.where(usable, (~sat & fails[None]).astype(float) @ w, -1.0)
+        if mass.max() <= self.settings.min_gain:
+            return None
+        best = np.flatnonzero(mass >= mass.max() - 1e-12)
+        d = self._pick(best, blocked)
+        return Item(len(self.items), "demonstration", "remedial", d,
+                    about=failed.index, gain=float((~sat[best[0]]).astype(float) @ w))
+
+    def _lesson(self) -> Item | None:
+        st = self.settings
+        if not self.pool.lessons.n_sets:
+            return None
+        blocked = self._blocked_lessons()
+        usable = self._usable(blocked)
+        if not usable.any():
+            return None
+        sat = self.pool.lessons.satisfied(self.belief.particles)  # [K, P]
+        w = self.belief.weights
         gain = np.where(usable, (~sat).astype(float) @ w, -1.0)
         top = gain.max()
         if top < st.min_gain:
@@ -470,38 +472,3 @@ class ClosedLoopTeacher:
         last = next((it for it in reversed(self.items) if it.kind == "demonstration"), None)
         return self._test_item(best, None if last is None else last.index, "check",
                                None if last is None else last.demo)
-
-    # -- scoring ---------------------------------------------------------------------------
-    def _score(self, d: int, response: dict[str, Any]) -> _Outcome:
-        """Replay a test answer from the test's start and score it as the study does (M1)."""
-        ds = self.pool.ds
-        b = ds.batch
-        e = int(ds.env[d])
-        if "actions" in response:
-            s = int(ds.start[d])
-            mu = np.zeros(ds.F)
-            states, actions = [], []
-            for t, name in enumerate(response["actions"]):
-                if name not in b.actions:
-                    raise ValueError(f"test answer: unknown action {name!r} at step {t} "
-                                     f"(actions: {', '.join(b.actions)})")
-                if s == b.sink:
-                    raise ValueError(f"test answer continues after the end (step {t})")
-                a = b.actions.index(name)
-                states.append(s)
-                actions.append(a)
-                mu += b.features[e, s, a]
-                s = int(b.next_state[e, s, a])
-            finished = s == b.sink
-        elif "feature_counts" in response:
-            mu = np.asarray(response["feature_counts"], dtype=float)
-            if mu.shape != (ds.F,):
-                raise ValueError(f"test answer: feature_counts needs {ds.F} numbers, "
-                                 f"got {response['feature_counts']!r}")
-            finished = bool(response.get("finished", True))
-            states = actions = None
-        else:
-            raise ValueError("a test answer needs 'actions' or 'feature_counts'")
-        reward = float(ds.weights @ mu)
-        correct = bool(optimal_mask(reward, ds.reward(d), finished))
-        return _Outcome(correct, finished, mu, states, actions)

@@ -19,31 +19,47 @@ from typing import Any
 
 import numpy as np
 
+from cfteach.simulate.domain_refs import domain_label, load_domain
+
 CLOSED_LOOP = "closed_loop"
 EQUAL_BUDGET = "proposed_equal_budget"
 #: Per learner, `proposed` shown as many items as that learner's closed-loop session.
 EQUAL_ITEMS = "proposed_equal_items"
+#: The open-loop curriculum every closed-loop session covers (docs/closed-loop.md).
+BACKBONE = "proposed"
 
 
 @cache
-def _pool(domain_ref: Any, profile: str, seed: int, held_key: str, human_models: int):
+def _pool(domain_ref: Any, profile: str, seed: int, held_key: str, human_models: int,
+          backbone_key: str = ""):
     """The lesson pool of one (domain, replication), built once per worker process."""
     from cfteach.closedloop import build_pool
-    from cfteach.simulate.sweep import load_domain
 
     held = [int(x) for x in held_key.split(",") if x]
+    backbone = [int(x) for x in backbone_key.split(",") if x]
     return build_pool(load_domain(domain_ref), profile=profile, human_models=human_models,
-                      seed=seed, held_out=held)
+                      seed=seed, held_out=held, backbone=backbone)
 
 
 def held_key(domain_ref: Any, profile: str, tests: dict[str, Any]) -> str:
     """The held-out tests as a hashable key of demo indices (for the worker cache)."""
     from cfteach.bec import demo_set
     from cfteach.closedloop import held_out_demos
-    from cfteach.simulate.sweep import load_domain
 
     ds = demo_set(load_domain(domain_ref), profile)
     return ",".join(str(d) for d in held_out_demos(ds, tests))
+
+
+def backbone_key(domain_ref: Any, profile: str, curriculum: dict[str, Any] | None) -> str:
+    """The backbone curriculum's demonstrations as a hashable key of demo indices, in
+    order ("" without one)."""
+    if not curriculum:
+        return ""
+    from cfteach.bec import demo_set
+    from cfteach.closedloop.pool import demo_indices
+
+    ds = demo_set(load_domain(domain_ref), profile)
+    return ",".join(str(d) for d in demo_indices(ds, curriculum["demos"]))
 
 
 def run_session(teacher: Any, learners: Any) -> dict[str, int]:
@@ -64,11 +80,10 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
     """Teach and test one block of learners, each with its own teacher; runs in a worker."""
     from cfteach.closedloop import ClosedLoopTeacher, TeacherSettings
     from cfteach.simulate.learners import Learners
-    from cfteach.simulate.sweep import load_domain
 
     dom = load_domain(chunk["domain"])
     pool = _pool(chunk["domain"], chunk["profile"], chunk["material_seed"], chunk["held_key"],
-                 chunk["pool_human_models"])
+                 chunk["pool_human_models"], chunk.get("backbone_key", ""))
     settings = TeacherSettings(**chunk.get("teacher", {}))
     ss = np.random.SeedSequence(chunk["entropy"])
     keys = ("correct", "reward", "finished", "contains_w_star", "belief_area",
@@ -117,7 +132,6 @@ def equal_budget_override(material: list[Any], result: Any, *, profile: str,
     `proposed` curriculum capped at closed-loop's mean demonstrations + feedback for that
     learner model, repeated from the start when it stops early (blind repetition)."""
     from cfteach import teaching
-    from cfteach.simulate.sweep import domain_label, load_domain
 
     b = result.beliefs[result.beliefs["condition"] == CLOSED_LOOP]
     shown = (b["demos"] + b["feedback"]).groupby(
@@ -144,7 +158,6 @@ def equal_items_override(material: list[Any], result: Any, *, profile: str,
     cut to, or repeated from the start up to, the number of items that learner's own
     closed-loop session showed, tests and feedback included."""
     from cfteach import teaching
-    from cfteach.simulate.sweep import domain_label, load_domain
 
     b = result.beliefs[result.beliefs["condition"] == CLOSED_LOOP]
     out: dict[tuple[str, int, str, str], dict] = {}

@@ -58,7 +58,7 @@ def proportion_table(df: pd.DataFrame) -> list[dict[str, Any]]:
     pooled = (per.groupby(["learner_model", "condition", "difficulty", "seed", "learner"],
                           observed=True)["correct"].mean().reset_index())
     pooled["domain"] = "all"
-    rows = []
+    rows: list[dict[str, Any]] = []
     domains = sorted(per["domain"].unique())
     if len(domains) > 1:
         both = pd.concat([per, pooled], ignore_index=True)
@@ -66,11 +66,12 @@ def proportion_table(df: pd.DataFrame) -> list[dict[str, Any]]:
         both = per
     counts = levelled.groupby(["learner_model", "domain", "condition", "difficulty"],
                               observed=True).size()
+    count_of = counts.to_dict()
     for (model, domain, cond, diff), g in both.groupby(
             ["learner_model", "domain", "condition", "difficulty"], observed=True):
         m, lo, hi = proportion_ci(g["correct"].to_numpy())
         n_answers = int(counts.xs((model, cond, diff), level=(0, 2, 3)).sum()) \
-            if domain == "all" else int(counts.loc[(model, domain, cond, diff)])
+            if domain == "all" else int(count_of[(model, domain, cond, diff)])
         rows.append({"learner_model": model, "domain": domain, "condition": cond,
                      "difficulty": diff, "proportion_optimal": m, "ci_low": lo, "ci_high": hi,
                      "n_learners": int(len(g)), "n_answers": n_answers})
@@ -146,6 +147,8 @@ def ordering(table: list[dict[str, Any]]) -> list[dict[str, Any]]:
         groups.setdefault(key, {})[r["difficulty"]] = r["proportion_optimal"]
     out = []
     for (model, domain, cond), p in groups.items():
+        holds: bool | None
+        weak: bool | None
         if all(lv in p for lv in LEVELS):
             holds = p["low"] > p["medium"] > p["high"]
             weak = p["low"] >= p["medium"] >= p["high"]

@@ -14,8 +14,8 @@ from __future__ import annotations
 import json
 import time
 import zlib
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -24,15 +24,18 @@ import pandas as pd
 
 from cfteach.jsonable import to_jsonable
 from cfteach.simulate.closed_loop import (
+    BACKBONE,
     CLOSED_LOOP,
     EQUAL_BUDGET,
     EQUAL_ITEMS,
+    backbone_key,
     closed_loop_chunk,
     equal_budget_override,
     equal_items_override,
     held_key,
 )
 from cfteach.simulate.compare import calibration_table, ratio_table
+from cfteach.simulate.domain_refs import domain_label, load_domain, parse_domain
 from cfteach.simulate.learners import LearnerModel, Learners, learner_model
 from cfteach.simulate.summary import (
     h1_correlations,
@@ -49,45 +52,6 @@ SWEEP_CONDITIONS = (*CONDITIONS, CLOSED_LOOP)
 NO_TEACHING = "none"  # control: learners who see no demonstration at all
 CLUSTER_LEVEL = {0: "high", 2: "medium", 4: "low"}  # tests.json cluster -> difficulty (Alg. 2)
 SCHEMA = "cfteach.simulation/1"
-
-
-# -- domains by reference (so worker processes can rebuild them) ---------------------------
-def parse_domain(spec: str) -> str | tuple:
-    """A domain reference: a built-in name, a TOML path, or a random gridworld written
-    ``random:WxH:fF:nN:sS`` (e.g. ``random:10x10:f5:n64:s0``)."""
-    if not spec.startswith("random:"):
-        return spec
-    parts = spec.split(":")[1:]
-    try:
-        if len(parts) != 4:
-            raise ValueError
-        w, h = (int(x) for x in parts[0].lower().split("x"))
-        keys = {p[0]: int(p[1:]) for p in parts[1:]}
-        return ("random", w, h, keys["f"], keys["n"], keys["s"])
-    except (ValueError, KeyError):
-        raise ValueError(f"bad random domain {spec!r}: write random:WxH:fF:nN:sS, e.g. "
-                         "random:10x10:f5:n64:s0") from None
-
-
-def domain_label(ref: str | tuple) -> str:
-    """Short name used in tables and file names."""
-    if isinstance(ref, tuple):
-        _, w, h, f, n, s = ref
-        return f"random-{w}x{h}-f{f}-n{n}-s{s}"
-    return Path(ref).stem if ref.endswith(".toml") else ref
-
-
-@cache
-def load_domain(ref: str | tuple):
-    """The Domain behind a reference (cached per process)."""
-    from cfteach import domains
-
-    if isinstance(ref, tuple):
-        from cfteach.domains.random import random_gridworld
-
-        _, w, h, f, n, s = ref
-        return random_gridworld(w, h, f, n, s)
-    return domains.load(ref)
 
 
 # -- teaching material ---------------------------------------------------------------------
@@ -132,6 +96,8 @@ def teach_material(domains: list[str | tuple], conditions: list[str], seeds: lis
     from cfteach.parallel import map_chunks
 
     taught = [c for c in conditions if c not in (NO_TEACHING, CLOSED_LOOP)]
+    if CLOSED_LOOP in conditions and BACKBONE not in taught:  # the closed loop's backbone
+        taught.append(BACKBONE)
     chunks = [{"domain": d, "seed": s, "conditions": taught, "profile": profile,
                "human_models": human_models, "per_level": per_level,
                "include_candidates": include_candidates, "known": known}
@@ -192,7 +158,7 @@ def answer_items(tests: dict[str, Any], include_candidates: bool = False) -> lis
 
 
 def _test_core(t: dict[str, Any]) -> dict[str, Any]:
-    core = {k: t[k] for k in ("env_index", "env_code", "start_state") if k in t}
+    core: dict[str, Any] = {k: t[k] for k in ("env_index", "env_code", "start_state") if k in t}
     if "start_state" not in core:
         raise ValueError("a test lacks 'start_state'")
     return core
@@ -325,7 +291,7 @@ def _belief_summary(beliefs: pd.DataFrame) -> list[dict[str, Any]]:
     return rows
 
 
-def simulate(material: list[Material], learner_models: list[str | LearnerModel], *,
+def simulate(material: list[Material], learner_models: Sequence[str | LearnerModel], *,
              n_learners: int = 32, conditions: list[str] | None = None,
              include_candidates: bool = False, seed: int = 0, chunk_learners: int = 16,
              executor=None, progress: bool = False, profile: str = "default",
@@ -355,12 +321,15 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
                                                          "optimal_reward")} for it in items]
         for cond in conds:
             extra: dict[str, Any] = {}
+            demos: list[Any]
             if cond == NO_TEACHING:
                 demos = []
             elif cond == CLOSED_LOOP:
                 demos = []
                 extra = {"closed_loop": True, "profile": profile, "material_seed": mat.seed,
                          "held_key": held_key(mat.domain, profile, mat.tests),
+                         "backbone_key": backbone_key(mat.domain, profile,
+                                                      mat.curricula.get(BACKBONE)),
                          "pool_human_models": 4 * human_models, "teacher": teacher or {}}
             elif cond in mat.curricula or demos_override:
                 demos = mat.curricula.get(cond, {}).get("demos", [])
@@ -391,9 +360,9 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
                          executor=executor)
     elapsed = time.perf_counter() - t0
     frames, belief_rows = [], []
-    for (label, mseed, cond, model, ids, items), res in zip(meta, results, strict=True):
+    for (label, mseed, cond, model_name, ids, items), res in zip(meta, results, strict=True):
         belief_rows.append(pd.DataFrame({
-            "learner_model": model, "domain": label, "condition": cond, "seed": mseed,
+            "learner_model": model_name, "domain": label, "condition": cond, "seed": mseed,
             "learner": ids, "contains_w_star": res["contains_w_star"],
             "belief_area": res["belief_area"], "belief_area_se": res["belief_area_se"],
             "belief_constraints": res["belief_constraints"],
@@ -404,7 +373,7 @@ def simulate(material: list[Material], learner_models: list[str | LearnerModel],
             continue
         n, t = res["correct"].shape
         frames.append(pd.DataFrame({
-            "domain": label, "condition": cond, "learner_model": model, "seed": mseed,
+            "domain": label, "condition": cond, "learner_model": model_name, "seed": mseed,
             "learner": np.repeat(ids, t),
             "test": np.tile([it["test"] for it in items], n),
             "source": np.tile([it["source"] for it in items], n),
@@ -478,10 +447,10 @@ def run_sweep(domains: list[str], conditions: list[str] | None = None,
                                       include_candidates=include_candidates, executor=ex,
                                       progress=progress, known=known)
         t_teach = time.perf_counter() - t0
-        common = {"n_learners": n_learners, "include_candidates": include_candidates,
-                  "seed": seed, "chunk_learners": chunk_learners, "executor": ex,
-                  "progress": progress, "profile": profile, "human_models": human_models,
-                  "teacher": teacher}
+        common: dict[str, Any] = {
+            "n_learners": n_learners, "include_candidates": include_candidates, "seed": seed,
+            "chunk_learners": chunk_learners, "executor": ex, "progress": progress,
+            "profile": profile, "human_models": human_models, "teacher": teacher}
         result = simulate(material, models, conditions=conditions, **common)
         if CLOSED_LOOP in conditions:
             t1 = time.perf_counter()
