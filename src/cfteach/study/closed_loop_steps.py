@@ -68,11 +68,12 @@ class ClosedLoopSteps:
         return n
 
     # -- answering -------------------------------------------------------------------------
-    def _cl_item_done(self, db: DBSession, row: Session, step: dict, ev: Event,
-                      p: schemas.ItemDone, now: datetime) -> None:
-        """Check the answer to the item on screen in full (no teacher work at all: a refused
-        answer costs a lookup and, for a test, one replay of its moves) and record it. The
-        next item is decided after the commit (`_cl_ensure`)."""
+    def _cl_check_answer(self, db: DBSession, row: Session, step: dict,
+                         p: schemas.ItemDone) -> tuple[ClosedLoopItem, dict[str, Any]]:
+        """Check the answer to the item on screen in full, before anything is written (no
+        teacher work and no write at all: a refused answer costs a lookup or two and, for a
+        test, one replay of its moves). Returns the item and what to record on it
+        (`_cl_item_done`); the next item is decided after the commit (`_cl_ensure`)."""
         item = self._cl_pending(db, row, step)
         if item is None or p.item != item.position:
             shown = "none: the next is being prepared" if item is None else item.position
@@ -89,19 +90,25 @@ class ClosedLoopSteps:
             except ScoringError as e:
                 raise ApiError(422, "bad_moves", str(e)) from e
             best = float(self.live.pool(study, step["domain"]).ds.reward(item.demo))
-            item.actions, item.reward, item.optimal_reward = " ".join(p.actions), \
-                score.reward, best
-            item.optimal = is_optimal(score.reward, best)
-        else:
-            if p.actions is not None:
-                raise ApiError(422, "bad_payload", f"item_done: a {item.kind} takes no actions")
-            # demonstrations and feedback alike: played and watched to the end, on the
-            # server's clock, before the teacher may count them as seen
-            done = self._demo_completions(db, row, row.step_index, item.position + 1)
-            if done[item.position] < 1:
-                what = "demonstration" if item.kind == "demonstration" else "feedback replay"
-                raise ApiError(409, "demos_unwatched", f"the {what} must be played and "
-                               "watched to the end at least once")
+            return item, {"actions": " ".join(p.actions), "reward": score.reward,
+                          "optimal_reward": best,
+                          "optimal": is_optimal(score.reward, best)}
+        if p.actions is not None:
+            raise ApiError(422, "bad_payload", f"item_done: a {item.kind} takes no actions")
+        # demonstrations and feedback alike: played and watched to the end, on the
+        # server's clock, before the teacher may count them as seen
+        done = self._demo_completions(db, row, row.step_index, item.position + 1)
+        if done[item.position] < 1:
+            what = "demonstration" if item.kind == "demonstration" else "feedback replay"
+            raise ApiError(409, "demos_unwatched", f"the {what} must be played and "
+                           "watched to the end at least once")
+        return item, {}
+
+    @staticmethod
+    def _cl_item_done(item: ClosedLoopItem, answer: dict[str, Any], now: datetime) -> None:
+        """Record a checked answer (`_cl_check_answer`) on its item."""
+        for name, value in answer.items():
+            setattr(item, name, value)
         item.done_at = now
         item.server_ms = max(0, int((now - aware(item.shown_at)).total_seconds() * 1000))
 

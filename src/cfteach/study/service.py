@@ -268,6 +268,9 @@ class StudyService(PageViews, ClosedLoopSteps):
             payload = model.model_validate(req.payload)
         except ValidationError as e:
             raise ApiError(422, "bad_payload", f"{req.type}: {_first_error(e)}") from e
+        answer = None
+        if req.type == "item_done":  # checked in full before anything is written
+            answer = self._cl_check_answer(db, row, step, payload)
         now = utcnow()
         row.event_seq += 1
         ev = Event(session_pk=row.id, seq=row.event_seq, event_id=req.event_id,
@@ -303,8 +306,8 @@ class StudyService(PageViews, ClosedLoopSteps):
         elif req.type == "demographics":
             row.age, row.gender, row.education = payload.age, payload.gender, payload.education
             advance = True
-        elif req.type == "item_done":
-            self._cl_item_done(db, row, step, ev, payload, now)
+        elif answer is not None:
+            self._cl_item_done(*answer, now)
         if advance:
             self._advance(db, row, now)
         return row, result
