@@ -44,7 +44,7 @@ def slim_study(study: dict, domain: str | None = None) -> dict:
 def _worker_init(studies: list[dict]) -> None:
     """In each worker process: one `LiveTeaching` with every pool built now (at start)."""
     global _WORKER_LIVE
-    _WORKER_LIVE = LiveTeaching(workers=1)
+    _WORKER_LIVE = LiveTeaching()
     for s in studies:
         _WORKER_LIVE.warm(s)
 
@@ -64,7 +64,7 @@ def decide_job(study: dict, session_pk: int, seed: int, domain: str,
 
 def _decide(live: LiveTeaching, study: dict, session_pk: int, seed: int, domain: str,
             responses: list[dict]) -> dict | None:
-    item, summary = live.decide(study, session_pk, seed, domain, responses, ahead=False)
+    item, summary = live.decide(study, session_pk, seed, domain, responses)
     if item is None:
         return None
     return {"index": int(item.index), "kind": item.kind, "purpose": item.purpose,
