@@ -2,7 +2,8 @@
 one after the other, each in a fresh `bench_closed_loop_study.py` process on one study
 folder made once, then one table with the load average recorded per row.
 
-Rows (N = `-n`, default 200: half closed-loop, half open-loop; one event per `--pace` s):
+First the server CPU per refused closed-loop answer (`--refusal-cost 300`), then the rows
+(N = `-n`, default 200: half closed-loop, half open-loop; one event per `--pace` s):
 
 1. SQLite, 1 server, no attackers            2. SQLite, 1 server, 2 attackers at their limits
 3. PostgreSQL, 1 server, no attackers        4. PostgreSQL, 1 server, 2 attackers
@@ -60,6 +61,11 @@ def run_suite(args: argparse.Namespace, script: Path) -> int:
               "--timeout", str(args.timeout)]
     results: dict[str, dict] = {}
     t0 = time.monotonic()
+    print(f"\n== refused closed-loop answers (load average {os.getloadavg()[0]:.1f}) ==",
+          flush=True)
+    cost = subprocess.run([sys.executable, str(script), *common, "--refusal-cost", "300"],
+                          check=False, capture_output=True, text=True)
+    print(cost.stdout + cost.stderr[-2000:], flush=True)
     for name, extra in _rows(args):
         out = tmp / f"{name.replace(' ', '_')}.json"
         print(f"\n== {name} (load average {os.getloadavg()[0]:.1f}) ==", flush=True)
@@ -69,6 +75,10 @@ def run_suite(args: argparse.Namespace, script: Path) -> int:
                          else {"failed": proc.returncode})
     print(f"\nsuite wall time {time.monotonic() - t0:.0f} s; {os.cpu_count()} cores")
     _table(results)
+    print("\nserver CPU per refused answer (target < 10 ms for closed-loop answers):")
+    for line in cost.stdout.splitlines():
+        if "per refusal" in line or line.startswith("load average"):
+            print(f"  {line}")
     return 0 if all(r.get("ok") for r in results.values()) else 1
 
 

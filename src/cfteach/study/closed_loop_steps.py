@@ -26,6 +26,7 @@ from .games import ScoringError, public_game, replay
 from .layout import instance_layout
 from .live import path_states, responses_of
 from .models import ClosedLoopItem, Event, Session, aware, utcnow
+from .queries import PENDING_ITEM
 
 #: How soon the page should ask again while an item is being prepared (ms).
 RETRY_MS = 250
@@ -44,9 +45,7 @@ class ClosedLoopSteps:
 
     def _cl_pending(self, db: DBSession, row: Session, step: dict) -> ClosedLoopItem | None:
         """The item on screen: the first one without an answer."""
-        return db.scalar(select(ClosedLoopItem).where(
-            ClosedLoopItem.session_pk == row.id, ClosedLoopItem.domain == step["domain"],
-            ClosedLoopItem.done_at.is_(None)).order_by(ClosedLoopItem.position).limit(1))
+        return db.scalar(PENDING_ITEM, {"pk": row.id, "domain": step["domain"]})
 
     def _cl_item(self, db: DBSession, row: Session, domain: str,
                  position: int | None) -> ClosedLoopItem | None:

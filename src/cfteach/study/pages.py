@@ -15,6 +15,7 @@ from .build import browser_game
 from .controls import PRACTICE_CONTROLS, controls
 from .errors import ApiError
 from .models import Event, Session, TestResponse, aware, utcnow
+from .queries import VERIFIED_PLAY_ENDS
 from .steps import demo_required_ms
 from .texts import EDUCATION, GENDERS, LIKERT, design_facts
 
@@ -89,9 +90,8 @@ class PageViews:
                           n: int) -> list[int]:
         """Plays of each demonstration the server saw run start to end (`verified`)."""
         counts = [0] * n
-        for payload in db.scalars(select(Event.payload).where(
-                Event.session_pk == row.id, Event.step_index == step_index,
-                Event.type == "demo_play_end", Event.verified.is_(True))):
+        for payload in db.scalars(VERIFIED_PLAY_ENDS,
+                                  {"pk": row.id, "step_index": step_index}):
             if 0 <= payload["demo_index"] < n:
                 counts[payload["demo_index"]] += 1
         return counts

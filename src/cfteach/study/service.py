@@ -31,6 +31,7 @@ from .identity import find_participant, participant_key, study_key
 from .live import LiveTeaching
 from .models import ClientReport, Event, Session, TestResponse, aware, utcnow
 from .pages import PageViews
+from .queries import EVENT_BY_ID, SESSION_BY_TOKEN, SESSION_BY_TOKEN_LOCKED
 from .steps import ALLOWED, build_steps
 from .versions import load_version
 
@@ -133,10 +134,8 @@ class StudyService(PageViews, ClosedLoopSteps):
     def _session(self, db: DBSession, token: str | None, *, lock: bool = False) -> Session:
         if not well_formed_token(token):
             raise ApiError(401, "no_session", "missing or malformed session token")
-        q = select(Session).where(Session.token == token)
-        if lock and self._pg:
-            q = q.with_for_update()
-        row = db.scalar(q)
+        q = SESSION_BY_TOKEN_LOCKED if lock and self._pg else SESSION_BY_TOKEN
+        row = db.scalar(q, {"token": token})
         if row is None:
             raise ApiError(401, "no_session", "unknown session token")
         if row.study_version not in self._studies:
@@ -245,8 +244,7 @@ class StudyService(PageViews, ClosedLoopSteps):
     def _apply(self, db: DBSession, token: str | None,
                req: schemas.EventRequest) -> tuple[Session, dict]:
         row = self._session(db, token, lock=True)
-        dup = db.scalar(select(Event.id).where(Event.session_pk == row.id,
-                                               Event.event_id == req.event_id))
+        dup = db.scalar(EVENT_BY_ID, {"pk": row.id, "event_id": req.event_id})
         if dup is not None:
             raise ApiError(409, "duplicate_event", f"event {req.event_id} was already stored")
         if row.status != "in_progress":
