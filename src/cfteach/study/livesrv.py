@@ -87,7 +87,8 @@ def serving_process(study: str | Path, *args: str,
         deadline = time.monotonic() + timeout
         while True:
             if proc.poll() is not None:
-                raise RuntimeError(f"cfteach serve exited: {proc.stderr.read()[-2000:]}")
+                err = proc.stderr.read() if proc.stderr else ""
+                raise RuntimeError(f"cfteach serve exited: {err[-2000:]}")
             if time.monotonic() > deadline:
                 raise RuntimeError(f"cfteach serve did not start within {timeout:.0f} s")
             try:
