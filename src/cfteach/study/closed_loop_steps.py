@@ -10,7 +10,7 @@ item"); ``GET /api/state?wait=S`` waits up to S seconds for it.
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
@@ -28,6 +28,10 @@ from .live import path_states, responses_of
 from .models import ClosedLoopItem, Event, Session, aware, utcnow
 from .queries import PENDING_ITEM
 
+if TYPE_CHECKING:
+    from .decisions import Decider
+    from .live import LiveTeaching
+
 #: How soon the page should ask again while an item is being prepared (ms).
 RETRY_MS = 250
 #: Longest wait a `GET /api/state?wait=` may ask for (s).
@@ -36,6 +40,18 @@ MAX_WAIT_S = 5.0
 
 class ClosedLoopSteps:
     """Mixed into `StudyService` (which provides Session, ReadSession, live, decider, ...)."""
+
+    if TYPE_CHECKING:  # what StudyService provides (the sessionmaker `Session` too)
+        live: LiveTeaching
+        decider: Decider
+        _pg: bool
+        _studies: dict[str, dict]
+
+        def study_of(self, row: Session) -> dict: ...
+        def steps(self, row: Session) -> list[dict]: ...
+        def _advance(self, db: DBSession, row: Session, now: datetime) -> None: ...
+        def _demo_completions(self, db: DBSession, row: Session, step_index: int,
+                              n: int) -> list[int]: ...
 
     # -- reading ---------------------------------------------------------------------------
     def _cl_stored(self, db: DBSession, row: Session, step_index: int) -> list[dict]:
@@ -136,7 +152,8 @@ class ClosedLoopSteps:
         """Store the decided item (or, when teaching is over, move the session on) if the
         session is still where the decision was asked; exactly once across processes (the
         session row lock, and the unique item position)."""
-        with self.Session() as db:
+        # StudyService's sessionmaker; a class-level annotation would shadow the model name
+        with self.Session() as db:  # type: ignore[attr-defined]
             try:
                 with db.begin():
                     q = select(Session).where(Session.id == job["pk"])

@@ -4,6 +4,7 @@ plays: the read side of the step machine, mixed into `StudyService`."""
 from __future__ import annotations
 
 from datetime import datetime
+from typing import TYPE_CHECKING
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session as DBSession
@@ -19,9 +20,21 @@ from .queries import VERIFIED_PLAY_ENDS
 from .steps import demo_required_ms
 from .texts import EDUCATION, GENDERS, LIKERT, design_facts
 
+if TYPE_CHECKING:
+    from .models import ClosedLoopItem
+
 
 class PageViews:
     """Mixed into `StudyService` (which provides study_of, steps, live, _cl_* ...)."""
+
+    if TYPE_CHECKING:  # what StudyService and ClosedLoopSteps provide
+        def study_of(self, row: Session) -> dict: ...
+        def steps(self, row: Session) -> list[dict]: ...
+        def _cl_view(self, db: DBSession, row: Session, step: dict) -> dict: ...
+        def _cl_pending(self, db: DBSession, row: Session,
+                        step: dict) -> ClosedLoopItem | None: ...
+        def _cl_play_actions(self, db: DBSession, row: Session, step: dict,
+                             item: ClosedLoopItem) -> int: ...
 
     def _view(self, db: DBSession, row: Session) -> dict:
         steps = self.steps(row)

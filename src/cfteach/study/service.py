@@ -9,7 +9,7 @@ import re
 import secrets
 import threading
 from datetime import datetime
-from typing import Any
+from typing import Any, cast
 
 from pydantic import ValidationError
 from sqlalchemy import Engine, func, select, text
@@ -106,7 +106,7 @@ class StudyService(PageViews, ClosedLoopSteps):
         with self._lock, self.Session() as db, db.begin():
             if self._pg:
                 db.execute(text("SELECT pg_advisory_xact_lock(727274)"))
-            if pid_key:
+            if pid_key and pid:  # (a key only ever comes with its PID)
                 row = find_participant(db, pid_key, pid)
                 if row is not None:
                     # a finished session shows its status page (screened out, declined,
@@ -268,7 +268,7 @@ class StudyService(PageViews, ClosedLoopSteps):
             raise ApiError(422, "bad_payload", f"{req.type}: {_first_error(e)}") from e
         answer = None
         if req.type == "item_done":  # checked in full before anything is written
-            answer = self._cl_check_answer(db, row, step, payload)
+            answer = self._cl_check_answer(db, row, step, cast(schemas.ItemDone, payload))
         now = utcnow()
         row.event_seq += 1
         ev = Event(session_pk=row.id, seq=row.event_seq, event_id=req.event_id,
@@ -277,7 +277,8 @@ class StudyService(PageViews, ClosedLoopSteps):
                    payload=payload.model_dump(), client_ms=req.client_ms, server_at=now)
         result: dict[str, Any] = {}
         if req.type in ("demo_play_start", "demo_play_end"):
-            result = self._check_demo(db, row, step, ev, payload, now)
+            result = self._check_demo(
+                db, row, step, ev, cast(schemas.DemoPlayStart | schemas.DemoPlayEnd, payload), now)
         db.add(ev)
         db.flush()
         row.last_active_at = now
@@ -296,13 +297,14 @@ class StudyService(PageViews, ClosedLoopSteps):
             row.status = "declined"  # final: frees the assignment cell at once
             row.completed_at = now
         elif req.type == "practice_attempt":
-            result = self._practice(row, payload)
+            result = self._practice(row, cast(schemas.PracticeAttempt, payload))
             advance = result["passed"]
         elif req.type == "test_response":
-            result = self._score_test(db, row, step, ev, payload, now)
+            result = self._score_test(db, row, step, ev, cast(schemas.TestAnswer, payload), now)
             advance = True
         elif req.type == "demographics":
-            row.age, row.gender, row.education = payload.age, payload.gender, payload.education
+            who = cast(schemas.Demographics, payload)
+            row.age, row.gender, row.education = who.age, who.gender, who.education
             advance = True
         elif answer is not None:
             self._cl_item_done(*answer, now)
