@@ -15,7 +15,7 @@ acknowledged event was stored exactly once. `--attackers K` adds K closed-loop s
 send refused answers and page reads at their rate limits for the whole run; compare the
 real participants' figures with and without them.
 
-Every configuration at once (about 12 minutes on an idle 2-core machine; one table, the
+Every configuration at once (about 12 to 14 minutes on an idle 2-core machine; one table, the
 load average recorded per row; see bench/closed_loop_suite.py):
 
     source scripts/postgres-for-tests
