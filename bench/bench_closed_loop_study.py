@@ -15,17 +15,27 @@ acknowledged event was stored exactly once. `--attackers K` adds K closed-loop s
 send refused answers and page reads at their rate limits for the whole run; compare the
 real participants' figures with and without them.
 
+Every configuration at once (about 12 to 14 minutes on an idle 2-core machine; one table, the
+load average recorded per row; see bench/closed_loop_suite.py):
+
+    source scripts/postgres-for-tests
+    .venv/bin/python bench/bench_closed_loop_study.py --suite --db "$CFTEACH_TEST_POSTGRES_URL"
+
+One configuration:
+
     .venv/bin/python bench/bench_closed_loop_study.py                  # SQLite, 100 + 100
     .venv/bin/python bench/bench_closed_loop_study.py --attackers 2
     .venv/bin/python bench/bench_closed_loop_study.py --db "$CFTEACH_TEST_POSTGRES_URL"
     .venv/bin/python bench/bench_closed_loop_study.py --db "$CFTEACH_TEST_POSTGRES_URL" \
         --servers 2 --decision-workers 1
+    .venv/bin/python bench/bench_closed_loop_study.py --refusal-cost 300
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import os
 import random
 import sys
@@ -39,15 +49,14 @@ from typing import Any
 
 import httpx
 import numpy as np
-from sqlalchemy import func, select
 
+import study_db_check
 from cfteach.study.bot import run_participant
 from cfteach.study.build import init_study, preview_sources
 from cfteach.study.db import drop_schema, make_engine
 from cfteach.study.livesrv import serving_process
-from cfteach.study.models import ClosedLoopItem, Event, Session
 
-MAX_PARTICIPANTS = 200
+MAX_PARTICIPANTS = 400
 
 
 class PacedClient:
@@ -60,8 +69,17 @@ class PacedClient:
         self.deciding: float | None = None  # perf_counter() of the item_done being decided
 
     def _timed(self, kind: str, fn: Any, *a: Any, **k: Any) -> httpx.Response:  # noqa: ANN401
+        """One request, timed; a transport error (reset, refused connection) is counted and
+        the request sent once more, as the page does (an event keeps its id: never stored
+        twice)."""
         t0 = time.perf_counter()
-        r = fn(*a, **k)
+        try:
+            r = fn(*a, **k)
+        except httpx.TransportError as e:
+            with self.lock:
+                self.times.setdefault("transport_errors", []).append(0.0)
+                self.times.setdefault("transport_error_kinds", []).append(repr(e)[:120])
+            r = fn(*a, **k)
         dt = time.perf_counter() - t0
         with self.lock:
             self.times[kind].append(dt)
@@ -134,16 +152,22 @@ def main() -> int:
                     "N refused closed-loop answers of each kind from one session and print "
                     "the server's CPU per refusal")
     ap.add_argument("--timeout", type=float, default=900.0, help="give up after (s)")
+    ap.add_argument("--study", type=Path, default=None, help="a study folder made by an "
+                    "earlier run (skateboard, the same --conditions and --max-items)")
+    ap.add_argument("--json-out", type=Path, default=None, help="also write the figures here")
+    ap.add_argument("--suite", action="store_true", help="run every configuration (SQLite, "
+                    "PostgreSQL from --db, attackers, 1 and 2 servers) and print one table")
     args = ap.parse_args()
+    if args.suite:
+        from closed_loop_suite import run_suite
+
+        return run_suite(args, Path(__file__))
     if not 1 <= args.participants <= MAX_PARTICIPANTS:
         ap.error(f"--participants must be 1..{MAX_PARTICIPANTS}")
     if args.pace < 0.2:
         ap.error("--pace must be at least 0.2 s")
     tmp = Path(tempfile.mkdtemp(prefix="cfteach-cl-load-"))
-    study = tmp / "study"
-    conds = [c.strip() for c in args.conditions.split(",") if c.strip()]
-    init_study(study, preview_sources(["skateboard"]), demo_step_ms=10, conditions=conds,
-               teacher={"max_items": args.max_items})
+    study = args.study or make_study(tmp / "study", args)
     db = args.db or f"sqlite:///{tmp / 'load.db'}"
     if db.startswith("postgresql"):
         engine = make_engine(db)
@@ -174,7 +198,15 @@ def main() -> int:
             t.join(30)
         cpu = (_tree_cpu(pids) - cpu0, _own_cpu() - own0)
     print(f"load average at start {load0:.1f}")
-    return _report(db, sent, times, wall, cpu, args)
+    return _report(db, sent, times, wall, cpu, args, load0)
+
+
+def make_study(folder: Path, args: argparse.Namespace) -> Path:
+    """The benchmark's skateboard study (placeholder post-tests, 10 ms demonstration steps)."""
+    conds = [c.strip() for c in args.conditions.split(",") if c.strip()]
+    init_study(folder, preview_sources(["skateboard"]), demo_step_ms=10, conditions=conds,
+               teacher={"max_items": args.max_items})
+    return folder
 
 
 def _cpu(pid: int) -> float:
@@ -315,35 +347,25 @@ def _pct(xs: list[float]) -> str:
             f"max {a.max():.0f} ms (n={len(a)})")
 
 
+def _p99(xs: list[float]) -> float | None:
+    return float(np.percentile(np.asarray(xs) * 1000, 99)) if xs else None
+
+
 def _report(db: str, sent: dict[str, int], times: dict, wall: float,
-            cpu: tuple[float, float], args: argparse.Namespace) -> int:
-    engine = make_engine(db)
-    with engine.connect() as conn:
-        stored = dict(conn.execute(select(Session.participant_id, func.count(Event.id))
-                                   .join(Event, Event.session_pk == Session.id)
-                                   .where(Session.prolific_pid.not_like("ATTACK%"))
-                                   .group_by(Session.participant_id)).all())
-        done = conn.scalar(select(func.count()).select_from(Session)
-                           .where(Session.status == "completed"))
-        dup_items = conn.scalar(select(func.count()).select_from(
-            select(ClosedLoopItem.session_pk).group_by(
-                ClosedLoopItem.session_pk, ClosedLoopItem.domain)
-            .having(func.max(ClosedLoopItem.position) + 1 != func.count()).subquery()))
-        items = conn.scalar(select(func.count()).select_from(ClosedLoopItem))
-        gaps = conn.scalar(select(func.count()).select_from(
-            select(Event.session_pk).group_by(Event.session_pk)
-            .having(func.max(Event.seq) != func.count()).subquery()))
-    engine.dispose()
+            cpu: tuple[float, float], args: argparse.Namespace, load0: float) -> int:
+    held = study_db_check.stored(db, skip_pid_prefix="ATTACK")
+    stored, done = held.events, len(held.completed)
+    lost, dup = held.lost(sent), held.duplicated(sent)
     kind = db.split(":")[0].split("+")[0]
     events = sum(sent.values())
+    load1 = os.getloadavg()[0]
     print(f"database: {kind}; {args.servers} server process(es) x {args.decision_workers} "
           f"decision worker(s); participants: {args.participants} at once ({args.conditions}),"
           f" one event per {args.pace:g} s each; attackers {args.attackers}; wall time "
-          f"{wall:.0f} s; {events} events acknowledged ({events / wall:.0f}/s); {items} "
-          "closed-loop items")
+          f"{wall:.0f} s; {events} events acknowledged ({events / wall:.0f}/s)")
     print(f"CPU: server {cpu[0]:.0f} s ({cpu[0] / wall:.2f} cores), simulated participants "
-          f"{cpu[1]:.0f} s ({cpu[1] / wall:.2f} cores); load average "
-          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+          f"{cpu[1]:.0f} s ({cpu[1] / wall:.2f} cores); load average {load0:.1f} at start, "
+          f"{load1:.1f} at end on {os.cpu_count()} cores")
     print(f"page (GET /api/state):       {_pct(times['page'])}")
     print(f"every event (POST):          {_pct(times['event'])}")
     print(f"decisions (item_done -> next item shown): {_pct(times['decision'])}")
@@ -351,12 +373,24 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
     slow = sorted(((k[5:], np.percentile(v, 99) * 1000) for k, v in times.items()
                    if k.startswith("type:")), key=lambda x: -x[1])
     print("p99 by event type: " + ", ".join(f"{k} {ms:.0f} ms" for k, ms in slow))
-    lost = {p: n - stored.get(p, 0) for p, n in sent.items() if stored.get(p, 0) != n}
+    resets = times.get("transport_error_kinds", [])
+    if resets:
+        print(f"transport errors (each retried once): {len(resets)}, e.g. {resets[0]}")
     print(f"stored: {sum(stored.values())} events for {len(stored)} sessions; completed "
-          f"{done}/{args.participants}; sessions with seq gaps {gaps}; with item gaps or "
-          f"repeats {dup_items}")
-    ok = not lost and done == args.participants and gaps == 0 and dup_items == 0
-    print("no event lost or duplicated" if ok else f"MISMATCH: {lost}")
+          f"{done}/{args.participants}; sessions with seq gaps {held.seq_gaps}; with item "
+          f"gaps or repeats {held.item_gaps}")
+    ok = (not lost and not dup and done == args.participants and held.seq_gaps == 0
+          and held.item_gaps == 0)
+    print("no event lost or duplicated" if ok else f"MISMATCH: lost {lost}, duplicated {dup}")
+    if args.json_out:
+        args.json_out.write_text(json.dumps({
+            "db": kind, "servers": args.servers, "workers": args.decision_workers,
+            "participants": args.participants, "pace": args.pace,
+            "attackers": args.attackers, "wall_s": wall, "events": events,
+            "load_start": load0, "load_end": load1, "server_cores": cpu[0] / wall,
+            "p99_ms": {k: _p99(times[k]) for k in ("decision", "event", "page")},
+            "transport_errors": len(resets), "lost": lost, "duplicated": dup,
+            "completed": done, "ok": ok}))
     return 0 if ok else 1
 
 

@@ -35,13 +35,12 @@ import gevent
 import httpx
 import numpy as np
 from locust.env import Environment
-from sqlalchemy import func, select
 
+import study_db_check
 from cfteach.cli.study_cmd import serve
 from cfteach.study.build import init_study, toy_sources
 from cfteach.study.db import drop_schema, make_engine
 from cfteach.study.livesrv import free_port
-from cfteach.study.models import Event, Session
 
 MAX_PARTICIPANTS = 1000
 MAX_DURATION = 3600.0
@@ -166,23 +165,11 @@ def _run(base: str, args: argparse.Namespace) -> tuple[dict[str, list[float]], f
 
 def _verify(db: str, tally: users.Tally) -> dict[str, Any]:
     """Compare what participants were told with what the database holds."""
-    engine = make_engine(db)
-    with engine.connect() as conn:
-        stored = dict(conn.execute(select(Session.participant_id, func.count(Event.id))
-                                   .outerjoin(Event, Event.session_pk == Session.id)
-                                   .group_by(Session.participant_id)).all())
-        completed = set(conn.scalars(select(Session.participant_id)
-                                     .where(Session.status == "completed")))
-        gaps = conn.scalar(select(func.count()).select_from(
-            select(Event.session_pk).group_by(Event.session_pk)
-            .having((func.max(Event.seq) != func.count())
-                    | (func.min(Event.seq) != 1)).subquery()))
-    engine.dispose()
-    lost = sum(max(0, n - stored.get(p, 0)) for p, n in tally.acked.items())
+    held = study_db_check.stored(db)
+    stored, completed, gaps = held.events, held.completed, held.seq_gaps
+    lost = held.lost(tally.acked)
     # Stored but never acknowledged: allowed only for events still without an answer.
-    extra = {p: stored.get(p, 0) - n - tally.in_flight.get(p, 0)
-             for p, n in tally.acked.items()}
-    duplicated = sum(x for x in extra.values() if x > 0)
+    duplicated = held.duplicated(tally.acked, tally.in_flight)
     problems = []
     if lost:
         problems.append(f"{lost} acknowledged events missing from the database")

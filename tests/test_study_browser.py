@@ -84,7 +84,9 @@ class Participant:
         return httpx.get(f"{self.base}/api/state", headers={"X-Session-Token": token}).json()
 
     def step(self) -> str:
-        self.page.wait_for_selector("main[data-step]")
+        """The page on screen, once it is one to act on: the "preparing the next item" page
+        (a closed-loop item still being decided, e.g. on a busy machine) passes by itself."""
+        self.page.wait_for_selector("main[data-step]:not([data-step='preparing'])")
         return self.page.get_attribute("main", "data-step")
 
     def wait_next_step(self, old_index: str) -> None:

@@ -338,7 +338,8 @@ def test_next_item_decided_in_background_while_a_demonstration_is_watched(
     live = app.state.service.live
     with client:
         who.to_closed_loop()
-        key = next(iter(live._teachers))
+        assert who.ready()["step"]["item"]["position"] == 0  # on screen (a busy machine
+        key = next(iter(live._teachers))                      # may take a while)
         deadline = time.monotonic() + 30
         while not any(len(t.responses) == 1 for t in live._teachers[key]):
             assert time.monotonic() < deadline, "no background decision"

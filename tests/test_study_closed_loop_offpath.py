@@ -100,6 +100,43 @@ def test_refused_answers_do_no_teacher_work(cl_only: Path, tmp_path: Path,
         assert calls == []  # not in the request, not in the background either
 
 
+def test_refused_answers_write_nothing(cl_only: Path, tmp_path: Path) -> None:
+    """A refused answer is checked before the event row is written: no INSERT or UPDATE
+    reaches the database (not even one rolled back), so a refusal costs reads only."""
+    from sqlalchemy import event as sa_event
+
+    app = create_app(cl_only, f"sqlite:///{tmp_path / 'w.db'}", seed=7)
+    writes: list[str] = []
+
+    def record(_conn, _cursor, statement: str, *_a) -> None:  # noqa: ANN001
+        if statement.lstrip().split(None, 1)[0].upper() in ("INSERT", "UPDATE", "DELETE"):
+            writes.append(statement.split("(", 1)[0])
+
+    with TestClient(app) as c:
+        who = Api(c, "nowrite00001")
+        who.to_closed_loop()
+        first = _ready(who)["step"]["item"]
+        assert first["kind"] == "demonstration"
+        _quiet(app)
+        sa_event.listen(app.state.service.engine, "before_cursor_execute", record)
+        for body in ({"item": first["position"]},                      # not watched
+                     {"item": first["position"], "actions": ["up"]},   # actions on a demo
+                     {"item": first["position"] + 1}):                 # not on screen
+            r = who.send("item_done", body)
+            assert r.status_code in (409, 422), r.text
+        sa_event.remove(app.state.service.engine, "before_cursor_execute", record)
+        assert writes == []
+        pos = _to_test(who)["step"]["item"]["position"]
+        _quiet(app)
+        sa_event.listen(app.state.service.engine, "before_cursor_execute", record)
+        for body in ({"item": pos, "actions": ["up"] * 3, "time_ms": 5},  # unfinished
+                     {"item": pos, "actions": ["fly"], "time_ms": 5}):    # not a move
+            r = who.send("item_done", body)
+            assert r.status_code in (409, 422), r.text
+        sa_event.remove(app.state.service.engine, "before_cursor_execute", record)
+        assert writes == []
+
+
 def test_page_is_told_while_the_next_item_is_prepared(cl_only: Path, tmp_path: Path) -> None:
     """A decision that takes long never blocks the answer or other pages: the answer is
     acknowledged with ``preparing: true``; `GET /api/state?wait=` then brings the item."""
@@ -119,8 +156,8 @@ def test_page_is_told_while_the_next_item_is_prepared(cl_only: Path, tmp_path: P
     with TestClient(app) as c:
         who = Api(c, "preparing0001")
         other = Api(c, "preparing0002")
-        st = who.to_closed_loop()
-        item = st["step"]["item"]
+        who.to_closed_loop()
+        item = _ready(who)["step"]["item"]  # decided (a loaded machine may take a while)
         _watch(who, item["position"])
         _quiet(app)
         service.decider._job = slow

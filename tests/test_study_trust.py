@@ -22,6 +22,7 @@ from cfteach.study.games import shortest_path
 from cfteach.study.models import utcnow
 from cfteach.study.server import create_app
 from cfteach.study.steps import DEMO_TOLERANCE_MS, demo_required_ms
+from test_study_support import researcher_progress, session_state
 
 db_url = test_study_support.db_url  # shared fixtures
 toy_study = test_study_support.toy_study
@@ -85,8 +86,6 @@ def _event(c: TestClient, token: str, step: int, type_: str, payload: dict | Non
         "payload": payload or {}})
 
 
-_state = test_study_support.session_state
-_progress = test_study_support.researcher_progress
 
 
 # -- demonstration plays, timed by the server ----------------------------------------------
@@ -126,7 +125,7 @@ def test_demo_plays_are_checked_on_the_servers_clock(slow_study: Path, db_url: s
         assert ev("demo_play_start", demo_index=1) == 200
         clock.tick(need[1] + 5)
         assert ev("demo_play_end", demo_index=1, completed=False, watch_ms=6000) == 200
-        assert _state(c, tok)["step"]["completed"] == [0, 0]
+        assert session_state(c, tok)["step"]["completed"] == [0, 0]
         r = _event(c, tok, i, "continue")
         assert r.status_code == 409 and r.json()["error"] == "demos_unwatched"
         assert "demonstration 1, 2" in r.json()["detail"]
@@ -135,7 +134,7 @@ def test_demo_plays_are_checked_on_the_servers_clock(slow_study: Path, db_url: s
             assert ev("demo_play_start", demo_index=k) == 200
             clock.tick(need[k])
             assert ev("demo_play_end", demo_index=k, completed=True, watch_ms=need[k] + 300) == 200
-        assert _state(c, tok)["step"]["completed"] == [1, 1]
+        assert session_state(c, tok)["step"]["completed"] == [1, 1]
         assert _event(c, tok, i, "continue").status_code == 200
     app.state.service.engine.dispose()
     export_csv(db_url, tmp_path)
@@ -184,20 +183,20 @@ def test_declining_consent_ends_the_session_and_frees_its_cell(
     app = create_app(quick_study, db_url, researcher_token="rt", seed=5)
     with TestClient(app) as c:
         tok = c.post("/api/session", json=PARAMS).json()["token"]
-        assert sum(cell["occupied"] for cell in _progress(c)["cells"]) == 1
+        assert sum(cell["occupied"] for cell in researcher_progress(c)["cells"]) == 1
         r = _event(c, tok, 0, "decline")
         assert r.status_code == 200
         st = r.json()["state"]
         assert st["status"] == "declined" and st["step"]["kind"] == "declined"
         assert st["step"]["code"] == "N0C0NSENT"
         assert st["step"]["redirect"].endswith("cc=N0C0NSENT")
-        prog = _progress(c)
+        prog = researcher_progress(c)
         assert sum(cell["occupied"] for cell in prog["cells"]) == 0  # freed at once
         assert prog["status"] == {"declined": 1}
         r = _event(c, tok, 0, "consent", CONSENT)
         assert r.status_code == 409 and r.json()["error"] == "session_finished"
         again = c.post("/api/session", json=PARAMS).json()
-        assert again["token"] == tok and _state(c, tok)["step"]["kind"] == "declined"
+        assert again["token"] == tok and session_state(c, tok)["step"]["kind"] == "declined"
         # Declining is an answer to the consent page only.
         other = run_participant(c, {**PARAMS, "prolific_pid": "consented1"}, stop_after=1)
         r = _event(c, other["token"], 1, "decline")

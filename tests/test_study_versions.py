@@ -20,6 +20,7 @@ from cfteach.study.config import StudyError, load_study
 from cfteach.study.export import export_csv
 from cfteach.study.models import StudyVersion
 from cfteach.study.server import create_app
+from test_study_support import researcher_progress, session_state
 
 db_url = test_study_support.db_url  # shared fixture
 
@@ -36,8 +37,6 @@ def _read(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-_state = test_study_support.session_state
-_progress = test_study_support.researcher_progress
 
 
 def _init(folder: Path, title: str, code: str) -> str:
@@ -60,16 +59,17 @@ def test_a_changed_study_file_keeps_serving_sessions_started_on_the_old_one(
         assert "Second study" in c.get("/").text
         back = c.post("/api/session", json=PARAMS).json()
         assert back["token"] == mid["token"] and back["resumed"] is True
-        st = _state(c, back["token"])
+        st = session_state(c, back["token"])
         assert st["step_index"] == 8 and st["step"]["kind"] == "test"
-        assert _progress(c)["older_versions_in_progress"] == 1  # shown, not counted in cells
+        # shown, not counted in cells
+        assert researcher_progress(c)["older_versions_in_progress"] == 1
         assert "in progress on older study versions: 1" in c.get("/researcher?token=rt").text
         done = run_participant(c, PARAMS)  # resumes by PID and finishes on version 1
         assert done["state"]["step"]["code"] == "CODE1"
         assert done["state"]["step"]["redirect"].endswith("cc=CODE1")
         new = run_participant(c, {**PARAMS, "prolific_pid": "newcomer01"})
         assert new["state"]["step"]["code"] == "CODE2"
-        prog = _progress(c)
+        prog = researcher_progress(c)
         assert prog["study_version"] == v2 and prog["status"] == {"completed": 1}
         assert prog["older_versions_in_progress"] == 0
     app.state.service.engine.dispose()

@@ -10,7 +10,7 @@ item"); ``GET /api/state?wait=S`` waits up to S seconds for it.
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
@@ -26,6 +26,11 @@ from .games import ScoringError, public_game, replay
 from .layout import instance_layout
 from .live import path_states, responses_of
 from .models import ClosedLoopItem, Event, Session, aware, utcnow
+from .queries import PENDING_ITEM
+
+if TYPE_CHECKING:
+    from .decisions import Decider
+    from .live import LiveTeaching
 
 #: How soon the page should ask again while an item is being prepared (ms).
 RETRY_MS = 250
@@ -36,6 +41,18 @@ MAX_WAIT_S = 5.0
 class ClosedLoopSteps:
     """Mixed into `StudyService` (which provides Session, ReadSession, live, decider, ...)."""
 
+    if TYPE_CHECKING:  # what StudyService provides (the sessionmaker `Session` too)
+        live: LiveTeaching
+        decider: Decider
+        _pg: bool
+        _studies: dict[str, dict]
+
+        def study_of(self, row: Session) -> dict: ...
+        def steps(self, row: Session) -> list[dict]: ...
+        def _advance(self, db: DBSession, row: Session, now: datetime) -> None: ...
+        def _demo_completions(self, db: DBSession, row: Session, step_index: int,
+                              n: int) -> list[int]: ...
+
     # -- reading ---------------------------------------------------------------------------
     def _cl_stored(self, db: DBSession, row: Session, step_index: int) -> list[dict]:
         return list(db.scalars(select(Event.payload).where(
@@ -44,9 +61,7 @@ class ClosedLoopSteps:
 
     def _cl_pending(self, db: DBSession, row: Session, step: dict) -> ClosedLoopItem | None:
         """The item on screen: the first one without an answer."""
-        return db.scalar(select(ClosedLoopItem).where(
-            ClosedLoopItem.session_pk == row.id, ClosedLoopItem.domain == step["domain"],
-            ClosedLoopItem.done_at.is_(None)).order_by(ClosedLoopItem.position).limit(1))
+        return db.scalar(PENDING_ITEM, {"pk": row.id, "domain": step["domain"]})
 
     def _cl_item(self, db: DBSession, row: Session, domain: str,
                  position: int | None) -> ClosedLoopItem | None:
@@ -68,11 +83,12 @@ class ClosedLoopSteps:
         return n
 
     # -- answering -------------------------------------------------------------------------
-    def _cl_item_done(self, db: DBSession, row: Session, step: dict, ev: Event,
-                      p: schemas.ItemDone, now: datetime) -> None:
-        """Check the answer to the item on screen in full (no teacher work at all: a refused
-        answer costs a lookup and, for a test, one replay of its moves) and record it. The
-        next item is decided after the commit (`_cl_ensure`)."""
+    def _cl_check_answer(self, db: DBSession, row: Session, step: dict,
+                         p: schemas.ItemDone) -> tuple[ClosedLoopItem, dict[str, Any]]:
+        """Check the answer to the item on screen in full, before anything is written (no
+        teacher work and no write at all: a refused answer costs a lookup or two and, for a
+        test, one replay of its moves). Returns the item and what to record on it
+        (`_cl_item_done`); the next item is decided after the commit (`_cl_ensure`)."""
         item = self._cl_pending(db, row, step)
         if item is None or p.item != item.position:
             shown = "none: the next is being prepared" if item is None else item.position
@@ -89,19 +105,25 @@ class ClosedLoopSteps:
             except ScoringError as e:
                 raise ApiError(422, "bad_moves", str(e)) from e
             best = float(self.live.pool(study, step["domain"]).ds.reward(item.demo))
-            item.actions, item.reward, item.optimal_reward = " ".join(p.actions), \
-                score.reward, best
-            item.optimal = is_optimal(score.reward, best)
-        else:
-            if p.actions is not None:
-                raise ApiError(422, "bad_payload", f"item_done: a {item.kind} takes no actions")
-            # demonstrations and feedback alike: played and watched to the end, on the
-            # server's clock, before the teacher may count them as seen
-            done = self._demo_completions(db, row, row.step_index, item.position + 1)
-            if done[item.position] < 1:
-                what = "demonstration" if item.kind == "demonstration" else "feedback replay"
-                raise ApiError(409, "demos_unwatched", f"the {what} must be played and "
-                               "watched to the end at least once")
+            return item, {"actions": " ".join(p.actions), "reward": score.reward,
+                          "optimal_reward": best,
+                          "optimal": is_optimal(score.reward, best)}
+        if p.actions is not None:
+            raise ApiError(422, "bad_payload", f"item_done: a {item.kind} takes no actions")
+        # demonstrations and feedback alike: played and watched to the end, on the
+        # server's clock, before the teacher may count them as seen
+        done = self._demo_completions(db, row, row.step_index, item.position + 1)
+        if done[item.position] < 1:
+            what = "demonstration" if item.kind == "demonstration" else "feedback replay"
+            raise ApiError(409, "demos_unwatched", f"the {what} must be played and "
+                           "watched to the end at least once")
+        return item, {}
+
+    @staticmethod
+    def _cl_item_done(item: ClosedLoopItem, answer: dict[str, Any], now: datetime) -> None:
+        """Record a checked answer (`_cl_check_answer`) on its item."""
+        for name, value in answer.items():
+            setattr(item, name, value)
         item.done_at = now
         item.server_ms = max(0, int((now - aware(item.shown_at)).total_seconds() * 1000))
 
@@ -130,7 +152,8 @@ class ClosedLoopSteps:
         """Store the decided item (or, when teaching is over, move the session on) if the
         session is still where the decision was asked; exactly once across processes (the
         session row lock, and the unique item position)."""
-        with self.Session() as db:
+        # StudyService's sessionmaker; a class-level annotation would shadow the model name
+        with self.Session() as db:  # type: ignore[attr-defined]
             try:
                 with db.begin():
                     q = select(Session).where(Session.id == job["pk"])

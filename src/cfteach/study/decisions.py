@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing as mp
+import os
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -29,6 +31,8 @@ from .live import LiveTeaching
 MAX_FUTURES = 4096
 #: Seconds a worker may take to start and build its lesson pools.
 WARM_TIMEOUT_S = 600.0
+#: Seconds between a worker's checks that its server is still there.
+PARENT_CHECK_S = 1.0
 
 _WORKER_LIVE: LiveTeaching | None = None
 
@@ -41,10 +45,20 @@ def slim_study(study: dict, domain: str | None = None) -> dict:
     return {"version": study["version"], "closed_loop": cells}
 
 
+def _exit_with(parent: int) -> None:
+    """End this worker once its server is gone. A server killed outright (SIGKILL, out of
+    memory) cannot shut its pool down, and an idle worker waiting for work never notices:
+    it would stay forever, holding its lesson pools' memory."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_CHECK_S)
+    os._exit(0)
+
+
 def _worker_init(studies: list[dict]) -> None:
     """In each worker process: one `LiveTeaching` with every pool built now (at start)."""
     global _WORKER_LIVE
-    _WORKER_LIVE = LiveTeaching(workers=1)
+    threading.Thread(target=_exit_with, args=(os.getppid(),), daemon=True).start()
+    _WORKER_LIVE = LiveTeaching()
     for s in studies:
         _WORKER_LIVE.warm(s)
 
@@ -64,7 +78,7 @@ def decide_job(study: dict, session_pk: int, seed: int, domain: str,
 
 def _decide(live: LiveTeaching, study: dict, session_pk: int, seed: int, domain: str,
             responses: list[dict]) -> dict | None:
-    item, summary = live.decide(study, session_pk, seed, domain, responses, ahead=False)
+    item, summary = live.decide(study, session_pk, seed, domain, responses)
     if item is None:
         return None
     return {"index": int(item.index), "kind": item.kind, "purpose": item.purpose,

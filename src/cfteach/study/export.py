@@ -161,6 +161,7 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
             q = q.where(Session.is_preview.is_(False))
         sessions = db.scalars(q).all()
         by_pk = {s.id: s for s in sessions}
+        s: Session | None  # below: the session of each row, None if left out
         for s in sessions:
             status = s.status
             idle = (now - aware(s.last_active_at)).total_seconds()
@@ -195,7 +196,8 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
                 dom = ev.domain
                 for item in ("informativeness", "mental_effort"):
                     rows["likert.csv"].append([s.participant_id, s.condition, dom,
-                                               order.index(dom) + 1, item, ev.payload[item]])
+                                               order.index(dom or "") + 1, item,
+                                               ev.payload[item]])
                 if ev.payload.get("comment"):
                     rows["comments.csv"].append([s.participant_id, s.condition, "survey", dom,
                                                  ev.payload["comment"]])
@@ -222,13 +224,16 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
             if s is None:
                 continue
             test = it.kind == "test" and it.reward is not None
+            regret = (repr(max(0.0, it.optimal_reward - it.reward))
+                      if test and it.optimal_reward is not None and it.reward is not None
+                      else "")
             rows["closed_loop_items.csv"].append([
                 s.participant_id, it.domain, s.domain_order.split(";").index(it.domain) + 1,
                 it.position, it.kind, it.purpose, "" if it.about is None else it.about,
                 it.env_code, it.env_index, strict_json(it.start_state),
                 teacher_seed(s.seed, it.domain), it.actions or "",
                 repr(it.reward) if test else "", repr(it.optimal_reward) if test else "",
-                repr(max(0.0, it.optimal_reward - it.reward)) if test else "",
+                regret,
                 _b(bool(it.optimal)) if test else "", repr(it.expected_area),
                 "" if it.predicted_optimal is None else repr(it.predicted_optimal),
                 "" if it.predicted_held_out is None else repr(it.predicted_held_out),
@@ -238,10 +243,10 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
             s = by_pk.get(r.session_pk) if r.session_pk is not None else None
             if r.session_pk is not None and s is None:
                 continue  # a preview's report (or one of a session left out)
-            ev = r.event if isinstance(r.event, dict) else {}
+            sent = r.event if isinstance(r.event, dict) else {}
             rows["client_reports.csv"].append([
                 s.participant_id if s else "", _iso(r.server_at), r.path, r.http_status,
-                r.error, r.detail, ev.get("type", ""), ev.get("step_index", ""),
+                r.error, r.detail, sent.get("type", ""), sent.get("step_index", ""),
                 "" if r.event is None else strict_json(r.event)])
     counts = {}
     for name, cols in COLUMNS.items():
@@ -254,8 +259,8 @@ def export_csv(db_url: str, out: str | Path, *, include_previews: bool = False,
         w = csv.writer(f)
         w.writerow(["file", "column", "type", "description"])
         for name, cols in COLUMNS.items():
-            for c, t, d in cols:
-                w.writerow([name, c, t, d])
+            for c, kind, d in cols:
+                w.writerow([name, c, kind, d])
     engine.dispose()
     return counts
 

@@ -7,18 +7,15 @@ server), and a teacher is cached only as a shortcut, found by the responses it h
 (its event count and content). After a restart, or when the cache does not match the
 database, the teacher is replayed from the events (`ClosedLoopTeacher.replay`).
 
-While a participant watches a demonstration or feedback (whose response is always ``{}``),
-a background thread decides the item after it, at most one task per session at a time.
+Decisions run in the decision workers (`decisions.Decider`), one `LiveTeaching` per
+worker; deciding ahead (the item after a demonstration or feedback) is the Decider's job.
 """
 
 from __future__ import annotations
 
-import contextlib
-import copy
 import threading
 import zlib
 from collections import OrderedDict
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -60,23 +57,15 @@ def responses_of(payloads: list[dict]) -> list[dict[str, Any]]:
 
 
 class LiveTeaching:
-    """Pools, games and (cached) teachers of one server."""
+    """Pools, games and (cached) teachers of one server or decision worker."""
 
-    def __init__(self, workers: int = 2) -> None:
+    def __init__(self) -> None:
         self._pools: dict[tuple[str, str], LessonPool] = {}
         self._games: dict[tuple[str, str, int], dict] = {}
         self._teachers: OrderedDict[tuple, list[ClosedLoopTeacher]] = OrderedDict()
         self._locks: dict[tuple, threading.Lock] = {}
         self._lock = threading.Lock()
         self._pool_lock = threading.Lock()
-        self._busy: set[tuple] = set()
-        self._ahead: dict[tuple, int] = {}  # session -> responses its last ahead task had
-        self._slots = threading.BoundedSemaphore(workers)
-        self._executor = ThreadPoolExecutor(max_workers=workers,
-                                            thread_name_prefix="closed-loop")
-
-    def close(self) -> None:
-        self._executor.shutdown(wait=False, cancel_futures=True)
 
     # -- derived data ----------------------------------------------------------------------
     def pool(self, study: dict, domain: str) -> LessonPool:
@@ -143,54 +132,17 @@ class LiveTeaching:
             while len(self._teachers) > MAX_TEACHERS:
                 old, _ = self._teachers.popitem(last=False)
                 self._locks.pop(old, None)
-                self._ahead.pop(old, None)
 
     def decide(self, study: dict, session_pk: int, session_seed: int, domain: str,
-               responses: list[dict], *, ahead: bool = True) -> tuple[Item | None, dict | None]:
+               responses: list[dict]) -> tuple[Item | None, dict | None]:
         """The item after `responses` and the belief summary when it was chosen (both
-        memoized on the teacher, so asking again costs nothing). With `ahead`, the item
-        after a demonstration or feedback is then decided in the background. With `ahead`
-        (outside any database transaction) at most `workers` decisions run at once, so the
-        requests that hold the database's write lock are not starved of the interpreter."""
-        with self._slots if ahead else contextlib.nullcontext(), \
-                self.session_lock(session_pk, domain):
+        memoized on the teacher, so asking again costs nothing)."""
+        with self.session_lock(session_pk, domain):
             t = self.teacher(study, session_pk, session_seed, domain, responses)
             item, summary = _decided(t)
             if item is not None and item.kind == "test":
                 self.game(study, domain, item.demo)  # the page's table, built now
-            if ahead:
-                self._precompute(study, session_pk, domain, t)
         return item, summary
-
-    def _precompute(self, study: dict, session_pk: int, domain: str,
-                    t: ClosedLoopTeacher) -> bool:
-        """Decide, in the background, the item after `t`'s pending one when its response
-        is known in advance (a demonstration or feedback: ``{}``). At most one task per
-        session; returns whether one was started. Call with the session lock held."""
-        item = t.next()
-        key = (session_pk, domain)
-        if item is None or item.kind == "test":
-            return False
-        with self._lock:
-            if key in self._busy or self._ahead.get(key) == len(t.responses):
-                return False  # running, or already done for this very item
-            self._busy.add(key)
-            self._ahead[key] = len(t.responses)
-        ahead = copy.deepcopy(t, {id(t.pool): t.pool})
-
-        def run() -> None:
-            try:
-                ahead.observe({})  # a private copy: no lock held while computing
-                item, _ = _decided(ahead)
-                self._remember(key, ahead)
-                if item is not None and item.kind == "test":
-                    self.game(study, domain, item.demo)  # the page's table, built now too
-            finally:
-                with self._lock:
-                    self._busy.discard(key)
-
-        self._executor.submit(run)
-        return True
 
 
 def _decided(t: ClosedLoopTeacher) -> tuple[Item | None, dict | None]:

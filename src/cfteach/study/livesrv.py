@@ -17,6 +17,14 @@ from pathlib import Path
 import uvicorn
 from fastapi import FastAPI
 
+#: Seconds uvicorn keeps an idle connection open. Longer than any client or proxy keeps
+#: one idle (nginx's upstream `keepalive_timeout` 60 s; browsers ~60 s), so the other side
+#: always closes first. A server that closes first races the client's next request on that
+#: connection, which is then reset: the client's idle clock starts when it reads a reply,
+#: the server's when it sends it, so a client that reads late (a busy machine) reuses a
+#: connection the server has just closed (docs/study.md, "Several servers").
+KEEP_ALIVE_S = 75
+
 
 def free_port() -> int:
     with socket.socket() as s:
@@ -36,6 +44,7 @@ def server_config(app: FastAPI, *, host: str, port: int, forwarded_allow_ips: st
     trusted = forwarded_allow_ips.strip()
     return uvicorn.Config(app, host=host, port=port, log_level=log_level, access_log=False,
                           lifespan="off", proxy_headers=bool(trusted),
+                          timeout_keep_alive=KEEP_ALIVE_S,
                           forwarded_allow_ips=trusted or None)
 
 
@@ -78,7 +87,8 @@ def serving_process(study: str | Path, *args: str,
         deadline = time.monotonic() + timeout
         while True:
             if proc.poll() is not None:
-                raise RuntimeError(f"cfteach serve exited: {proc.stderr.read()[-2000:]}")
+                err = proc.stderr.read() if proc.stderr else ""
+                raise RuntimeError(f"cfteach serve exited: {err[-2000:]}")
             if time.monotonic() > deadline:
                 raise RuntimeError(f"cfteach serve did not start within {timeout:.0f} s")
             try:

@@ -4,6 +4,7 @@ plays: the read side of the step machine, mixed into `StudyService`."""
 from __future__ import annotations
 
 from datetime import datetime
+from typing import TYPE_CHECKING
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session as DBSession
@@ -15,12 +16,25 @@ from .build import browser_game
 from .controls import PRACTICE_CONTROLS, controls
 from .errors import ApiError
 from .models import Event, Session, TestResponse, aware, utcnow
+from .queries import VERIFIED_PLAY_ENDS
 from .steps import demo_required_ms
 from .texts import EDUCATION, GENDERS, LIKERT, design_facts
+
+if TYPE_CHECKING:
+    from .models import ClosedLoopItem
 
 
 class PageViews:
     """Mixed into `StudyService` (which provides study_of, steps, live, _cl_* ...)."""
+
+    if TYPE_CHECKING:  # what StudyService and ClosedLoopSteps provide
+        def study_of(self, row: Session) -> dict: ...
+        def steps(self, row: Session) -> list[dict]: ...
+        def _cl_view(self, db: DBSession, row: Session, step: dict) -> dict: ...
+        def _cl_pending(self, db: DBSession, row: Session,
+                        step: dict) -> ClosedLoopItem | None: ...
+        def _cl_play_actions(self, db: DBSession, row: Session, step: dict,
+                             item: ClosedLoopItem) -> int: ...
 
     def _view(self, db: DBSession, row: Session) -> dict:
         steps = self.steps(row)
@@ -89,9 +103,8 @@ class PageViews:
                           n: int) -> list[int]:
         """Plays of each demonstration the server saw run start to end (`verified`)."""
         counts = [0] * n
-        for payload in db.scalars(select(Event.payload).where(
-                Event.session_pk == row.id, Event.step_index == step_index,
-                Event.type == "demo_play_end", Event.verified.is_(True))):
+        for payload in db.scalars(VERIFIED_PLAY_ENDS,
+                                  {"pk": row.id, "step_index": step_index}):
             if 0 <= payload["demo_index"] < n:
                 counts[payload["demo_index"]] += 1
         return counts

@@ -32,7 +32,7 @@ class RateLimiter:
             return True
         now = time.monotonic() if now is None else now
         with self._lock:
-            q = self._recent(key, now, create=True)
+            q = self._recent(key, now)
             if self._sums.get(key, 0.0) + cost > self.limit + 1e-9:
                 return False
             q.append((now, cost))
@@ -45,8 +45,10 @@ class RateLimiter:
             return False
         now = time.monotonic() if now is None else now
         with self._lock:
-            q = self._recent(key, now, create=False)
-            return q is not None and self._sums.get(key, 0.0) >= self.limit - 1e-9
+            if key not in self._hits:
+                return False
+            self._recent(key, now)
+            return self._sums.get(key, 0.0) >= self.limit - 1e-9
 
     def hit(self, key: str, now: float | None = None) -> None:
         """Count one hit for `key` (a failure to remember), whether or not it is over."""
@@ -54,18 +56,16 @@ class RateLimiter:
             return
         now = time.monotonic() if now is None else now
         with self._lock:
-            q = self._recent(key, now, create=True)
+            q = self._recent(key, now)
             q.append((now, 1.0))
             self._sums[key] = self._sums.get(key, 0.0) + 1.0
             while len(q) > self.limit:  # more than `limit` hits tell nothing more
                 self._sums[key] -= q.popleft()[1]
 
-    def _recent(self, key: str, now: float, *,
-                create: bool) -> deque[tuple[float, float]] | None:
+    def _recent(self, key: str, now: float) -> deque[tuple[float, float]]:
+        """`key`'s hits within the window (a new, empty window if it has none)."""
         q = self._hits.get(key)
         if q is None:
-            if not create:
-                return None
             if len(self._hits) >= self.max_keys:
                 self._forget(now)
             q = self._hits[key] = deque()

@@ -203,7 +203,9 @@ def _typed_event(type_: str, payload: type[Strict]) -> type[EventRequest]:
     """An EventRequest whose `type` is `type_` and whose payload is already validated."""
     required = any(f.is_required() for f in payload.model_fields.values())
     name = "".join(w.capitalize() for w in type_.split("_")) + "Event"
-    return create_model(name, __base__=EventRequest, type=(Literal[type_], ...),
+    # Literal of a runtime value: the checker cannot see it, pydantic builds it fine
+    return create_model(name, __base__=EventRequest,
+                        type=(Literal[type_], ...),  # type: ignore[arg-type]  # see above
                         payload=(payload, ... if required else Field(default_factory=payload)))
 
 
@@ -217,5 +219,6 @@ def as_request(event: EventRequest) -> EventRequest:
 # The body of POST /api/event: one variant per event type, chosen by `type`, so the OpenAPI
 # schema states each type's payload and an unknown type or a bad payload is refused (422)
 # before the session is looked at. Every variant is an EventRequest.
-EventBody = Annotated[Union[tuple(_typed_event(t, m) for t, m in PAYLOADS.items())],  # noqa: UP007
+# (a Union built at run time: the checker cannot follow it; to it, an EventRequest)
+EventBody = Annotated[Union[tuple(_typed_event(t, m) for t, m in PAYLOADS.items())],  # type: ignore[valid-type]  # noqa: UP007, E501
                       Field(discriminator="type")]

@@ -171,10 +171,11 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
 
     @app.post("/api/event", response_model=EventAck,
               responses=errors(400, 401, 408, 409, 410, 413, 415, 422, 429, 503))
-    async def event(req: schemas.EventBody, request: Request,
+    # EventBody is a Union built at run time (schemas.py): FastAPI reads it, mypy cannot
+    async def event(req: schemas.EventBody, request: Request,  # type: ignore[valid-type]
                     x_session_token: str | None = Header(default=None)) -> JSONResponse:
         tok = _session_token(request, x_session_token)
-        if not event_limit.allow(tok, cost=event_cost(req.type)):
+        if not event_limit.allow(tok, cost=event_cost(req.type)):  # type: ignore[attr-defined]
             raise ApiError(429, "rate_limited", "too many events; slow down")
         return JSONResponse(await service.post_event_async(tok, schemas.as_request(req)))
 

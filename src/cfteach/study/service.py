@@ -9,7 +9,7 @@ import re
 import secrets
 import threading
 from datetime import datetime
-from typing import Any
+from typing import Any, cast
 
 from pydantic import ValidationError
 from sqlalchemy import Engine, func, select, text
@@ -31,6 +31,7 @@ from .identity import find_participant, participant_key, study_key
 from .live import LiveTeaching
 from .models import ClientReport, Event, Session, TestResponse, aware, utcnow
 from .pages import PageViews
+from .queries import EVENT_BY_ID, SESSION_BY_TOKEN, SESSION_BY_TOKEN_LOCKED
 from .steps import ALLOWED, build_steps
 from .versions import load_version
 
@@ -105,7 +106,7 @@ class StudyService(PageViews, ClosedLoopSteps):
         with self._lock, self.Session() as db, db.begin():
             if self._pg:
                 db.execute(text("SELECT pg_advisory_xact_lock(727274)"))
-            if pid_key:
+            if pid_key and pid:  # (a key only ever comes with its PID)
                 row = find_participant(db, pid_key, pid)
                 if row is not None:
                     # a finished session shows its status page (screened out, declined,
@@ -133,10 +134,8 @@ class StudyService(PageViews, ClosedLoopSteps):
     def _session(self, db: DBSession, token: str | None, *, lock: bool = False) -> Session:
         if not well_formed_token(token):
             raise ApiError(401, "no_session", "missing or malformed session token")
-        q = select(Session).where(Session.token == token)
-        if lock and self._pg:
-            q = q.with_for_update()
-        row = db.scalar(q)
+        q = SESSION_BY_TOKEN_LOCKED if lock and self._pg else SESSION_BY_TOKEN
+        row = db.scalar(q, {"token": token})
         if row is None:
             raise ApiError(401, "no_session", "unknown session token")
         if row.study_version not in self._studies:
@@ -245,8 +244,7 @@ class StudyService(PageViews, ClosedLoopSteps):
     def _apply(self, db: DBSession, token: str | None,
                req: schemas.EventRequest) -> tuple[Session, dict]:
         row = self._session(db, token, lock=True)
-        dup = db.scalar(select(Event.id).where(Event.session_pk == row.id,
-                                               Event.event_id == req.event_id))
+        dup = db.scalar(EVENT_BY_ID, {"pk": row.id, "event_id": req.event_id})
         if dup is not None:
             raise ApiError(409, "duplicate_event", f"event {req.event_id} was already stored")
         if row.status != "in_progress":
@@ -268,6 +266,9 @@ class StudyService(PageViews, ClosedLoopSteps):
             payload = model.model_validate(req.payload)
         except ValidationError as e:
             raise ApiError(422, "bad_payload", f"{req.type}: {_first_error(e)}") from e
+        answer = None
+        if req.type == "item_done":  # checked in full before anything is written
+            answer = self._cl_check_answer(db, row, step, cast(schemas.ItemDone, payload))
         now = utcnow()
         row.event_seq += 1
         ev = Event(session_pk=row.id, seq=row.event_seq, event_id=req.event_id,
@@ -276,7 +277,8 @@ class StudyService(PageViews, ClosedLoopSteps):
                    payload=payload.model_dump(), client_ms=req.client_ms, server_at=now)
         result: dict[str, Any] = {}
         if req.type in ("demo_play_start", "demo_play_end"):
-            result = self._check_demo(db, row, step, ev, payload, now)
+            result = self._check_demo(
+                db, row, step, ev, cast(schemas.DemoPlayStart | schemas.DemoPlayEnd, payload), now)
         db.add(ev)
         db.flush()
         row.last_active_at = now
@@ -295,16 +297,17 @@ class StudyService(PageViews, ClosedLoopSteps):
             row.status = "declined"  # final: frees the assignment cell at once
             row.completed_at = now
         elif req.type == "practice_attempt":
-            result = self._practice(row, payload)
+            result = self._practice(row, cast(schemas.PracticeAttempt, payload))
             advance = result["passed"]
         elif req.type == "test_response":
-            result = self._score_test(db, row, step, ev, payload, now)
+            result = self._score_test(db, row, step, ev, cast(schemas.TestAnswer, payload), now)
             advance = True
         elif req.type == "demographics":
-            row.age, row.gender, row.education = payload.age, payload.gender, payload.education
+            who = cast(schemas.Demographics, payload)
+            row.age, row.gender, row.education = who.age, who.gender, who.education
             advance = True
-        elif req.type == "item_done":
-            self._cl_item_done(db, row, step, ev, payload, now)
+        elif answer is not None:
+            self._cl_item_done(*answer, now)
         if advance:
             self._advance(db, row, now)
         return row, result

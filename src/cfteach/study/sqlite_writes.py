@@ -118,19 +118,19 @@ def connection_class(sync: WalSync | None) -> type[sqlite3.Connection]:
                 lock.release()
 
         def commit(self) -> None:
-            wrote = self.holds_write_lock and sync is not None
-            if wrote:
-                sync.begin_commit()
+            wal = sync if self.holds_write_lock else None  # a write to make durable
+            if wal is not None:
+                wal.begin_commit()
             try:
                 super().commit()
             except BaseException:
-                if wrote:
-                    sync.abort_commit()
+                if wal is not None:
+                    wal.abort_commit()
                 raise
             finally:
                 self.release_write_lock()
-            if wrote:
-                sync.wait_durable()
+            if wal is not None:
+                wal.wait_durable()
 
         def rollback(self) -> None:
             try:

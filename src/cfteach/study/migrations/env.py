@@ -12,7 +12,10 @@ target = Base.metadata
 def run() -> None:
     conn = config.attributes.get("connection")
     if conn is None:
-        engine = create_engine(config.get_main_option("sqlalchemy.url"))
+        url = config.get_main_option("sqlalchemy.url")
+        if url is None:  # db.alembic_config always sets it
+            raise RuntimeError("no database URL: set sqlalchemy.url")
+        engine = create_engine(url)
         with engine.connect() as c:
             _migrate(c)
             c.commit()

@@ -1,12 +1,14 @@
 // Participant UI: fetches the current step from the server, renders it, posts events.
 // All study logic (order, assignment, scoring, gating) lives on the server; a reload simply
 // asks the server again and lands on the same page.
+import { demographicsPage, feedbackPage, surveyPage, testPage } from "./answers.js";
 import { closedLoopPage } from "./closedloop.js";
+import { demosPage } from "./demos.js";
 import { Game } from "./game.js";
 import { drawGrid } from "./grid.js";
 import { flushPending, getToken, onTrouble, post, report, request, setToken } from "./net.js";
 import { preparing, waitWhilePreparing } from "./preparing.js";
-import { continueButton, count, design, fill, h, keyLegend, likert, showError } from "./ui.js";
+import { continueButton, count, design, fill, h, keyLegend, showError } from "./ui.js";
 
 const app = document.getElementById("app");
 // Keys and their actions come from the server, per game (`controls`: the domain's declared
@@ -107,6 +109,12 @@ function activate(game) {
   gameKeys = new Set([...Object.keys(game.keymap), ...RESET_KEYS]);
   game.host.addEventListener("click", () => game.host.focus());
   game.host.focus({ preventScroll: true });
+}
+
+// What a page module may use of this one (demos.js, answers.js, closedloop.js).
+function context() {
+  return { app, send, advance, activate, keepFocus, onCleanup: (f) => cleanup.push(f),
+    watched: (w) => { watchedAll = w; } };
 }
 
 // ---------------------------------------------------------------------------------------
@@ -324,230 +332,28 @@ const pages = {
   },
 
   demos(st) {
-    const s = st.step;
-    const done = s.completed.slice();
-    watchedAll = done.every((n) => n >= 1);
-    let k = Math.max(0, done.findIndex((n) => n < 1));
-    if (done.every((n) => n >= 1)) k = s.demos.length - 1;
-    let timer = null, playing = null;
-    const board = h("div", { id: "board" });
-    const title = h("h2", { id: "demo-title" });
-    const playBtn = h("button", { id: "play", class: "primary" });
-    const prev = h("button", { id: "prev" }, "Previous");
-    const next = h("button", { id: "next", class: "primary" }, "Next");
-    const last = h("p", { class: "note", id: "last-note" });
-    // An action the board cannot show by Chip's position (a declared exit or stay) is named
-    // under the board while its frame is on screen.
-    const caption = h("p", { id: "demo-action", role: "status" });
-    const marked = Object.fromEntries((s.info.controls || [])
-      .filter((c) => c.effect === "exit" || c.effect === "stay").map((c) => [c.action, c.label]));
-    const captionAt = (d, f) => {
-      const a = f > 0 ? d.actions[f - 1] : null;
-      caption.textContent = a && marked[a] ? `Chip: ${marked[a]}` : "";
-    };
-    const stop = (completed) => {
-      if (timer) clearInterval(timer);
-      timer = null;
-      if (playing) {
-        send(st.step_index, "demo_play_end", { demo_index: playing.k, completed,
-          watch_ms: Math.round(performance.now() - playing.t0) });
-        playing = null;
-      }
-    };
-    const show = () => {
-      const d = s.demos[k];
-      title.textContent = `Demonstration ${k + 1} of ${s.demos.length}`;
-      board.replaceChildren(drawGrid(d.layout, d.states[0], { trail: [d.states[0].agent],
-        label: `demonstration ${k + 1}` }));
-      board.dataset.demo = String(k);
-      board.dataset.frame = "0";
-      captionAt(d, 0);
-      playBtn.textContent = done[k] > 0 ? "Replay" : "Play";
-      delete playBtn.dataset.state;
-      prev.disabled = k === 0;
-      next.disabled = done[k] < 1;
-      next.textContent = k === s.demos.length - 1 ? "Continue" : "Next";
-      last.textContent = k === s.demos.length - 1
-        ? "Note: This is the last chance to review any previous demonstrations (by pressing " +
-          "on the 'Previous' button below) if you wish! (You will be asked about the " +
-          "informativeness and difficulty of the demonstrations on the following page.)" : "";
-    };
-    playBtn.addEventListener("click", async () => {
-      stop(false);
-      const d = s.demos[k];
-      // The replay starts once the server has stored its start: a start held up by the
-      // network would otherwise be timed by the server as a play too short to count.
-      playBtn.disabled = prev.disabled = next.disabled = true;
-      playBtn.dataset.state = "starting";
-      const r = await send(st.step_index, "demo_play_start", { demo_index: k });
-      if (!r.ok || !playBtn.isConnected) return;  // refused: the page has been redrawn
-      playBtn.dataset.state = "playing";
-      prev.disabled = k === 0;
-      next.disabled = done[k] < 1;
-      playing = { k, t0: performance.now() };
-      let f = 0;
-      const trail = [d.states[0].agent];
-      timer = setInterval(() => {
-        f += 1;
-        if (f >= d.states.length) {
-          const kk = k;
-          stop(true);
-          done[kk] += 1;
-          watchedAll = done.every((n) => n >= 1);
-          playBtn.disabled = false;
-          show();
-          playBtn.dataset.state = "done";
-          keepFocus(playBtn);
-          board.replaceChildren(drawGrid(d.layout, d.states[d.states.length - 1],
-            { trail, label: `demonstration ${kk + 1}`, banner: "Demonstration complete" }));
-          board.dataset.frame = String(d.states.length - 1);
-          board.dataset.watched = "true";
-          captionAt(d, d.states.length - 1);
-          return;
-        }
-        trail.push(d.states[f].agent);
-        board.replaceChildren(drawGrid(d.layout, d.states[f], { trail,
-          label: `demonstration ${k + 1}` }));
-        board.dataset.frame = String(f);
-        captionAt(d, f);
-      }, s.step_ms);
-    });
-    prev.addEventListener("click", () => {
-      stop(false);
-      playBtn.disabled = false;
-      k -= 1;
-      show();
-      keepFocus(playBtn);  // "Previous" is disabled on the first demonstration
-    });
-    next.addEventListener("click", () => {
-      if (done[k] < 1) return;
-      stop(false);
-      if (k < s.demos.length - 1) { k += 1; playBtn.disabled = false; show(); }
-      else advance(st.step_index, "continue");
-    });
-    cleanup.push(() => stop(false));
-    fill(app,
-      h("h1", { text: "Demonstration of best strategy" }),
-      h("p", { text: "Feel free to watch the demonstration as many times as you want (but at " +
-        "least once)!" }),
-      h("p", { text: `Task: ${s.info.task}` }),
-      title, board, caption, h("div", { class: "controls" }, playBtn, " ", prev, " ", next),
-      last);
-    show();
+    demosPage(context(), st);
   },
 
   // The closed_loop condition: one item at a time, decided by the server's teacher.
   closed_loop(st) {
-    closedLoopPage({ app, send, advance, activate, keepFocus,
-      onCleanup: (f) => cleanup.push(f), watched: (w) => { watchedAll = w; } }, st);
+    closedLoopPage(context(), st);
   },
 
   survey(st) {
-    const items = st.step.items;
-    const form = h("form", { id: "survey" });
-    for (const [key, item] of Object.entries(items)) {
-      form.appendChild(likert(key, item));
-    }
-    form.appendChild(h("label", { class: "comment" }, "Feel free to explain any of your " +
-      "selections above if you wish:", h("textarea", { name: "comment", maxlength: "2000" })));
-    const submit = continueButton("Continue", async (e) => {
-      e.preventDefault();
-      const fd = new FormData(form);
-      if (!fd.get("informativeness") || !fd.get("mental_effort")) {
-        showError("Please answer both questions.");
-        return;
-      }
-      submit.disabled = true;
-      await advance(st.step_index, "likert", { informativeness: +fd.get("informativeness"),
-        mental_effort: +fd.get("mental_effort"), comment: fd.get("comment") || "" });
-      submit.disabled = false;
-    }, { id: "next", type: "submit" });
-    form.appendChild(submit);
-    fill(app, h("h1", { text: "Survey" }),
-      h("p", { text: "You have viewed all of the demonstrations for this game! Please " +
-        "complete the survey below." }), form);
+    surveyPage(context(), st);
   },
 
   test(st) {
-    const s = st.step;
-    const board = h("div", { id: "board" });
-    const form = h("form", { id: "confidence" }, likert("confidence", s.confidence));
-    const submit = continueButton("Submit", null, { id: "next", type: "submit",
-      disabled: true });
-    form.appendChild(submit);
-    const t0 = performance.now() - (s.elapsed_ms || 0);  // shown before a reload: keep counting
-    const game = new Game(board, s.layout, s.game, { controls: s.info.controls, label: "test game",
-      onEnd: () => update() });
-    const update = () => {
-      const chosen = new FormData(form).get("confidence");
-      submit.disabled = !(game.ended && chosen);
-    };
-    form.addEventListener("change", update);
-    form.addEventListener("submit", async (e) => {
-      e.preventDefault();
-      if (!game.ended) return;
-      submit.disabled = true;
-      await advance(st.step_index, "test_response", { actions: game.moves,
-        time_ms: Math.round(performance.now() - t0),
-        confidence: +new FormData(form).get("confidence"), resets: game.resets });
-    });
-    fill(app,
-      h("h1", { text: "Participant gameplay" }),
-      h("p", { id: "trial", text: `Game ${s.trial} of ${s.n_trials}` }),
-      h("p", { text: `Now it's your turn to play ${count(s.n_trials, "game")}! ` +
-        "Please demonstrate how you would " +
-        "complete this game's task while minimizing Chip's energy loss. You may reset at any " +
-        "time before the game ends if you think you've made a mistake." }),
-      h("p", { text: `Task: ${s.info.task}` }),
-      h("div", { class: "play" }, board, keyLegend(s.info.controls)),
-      h("p", { text: "Please answer the question below on the confidence of your gameplay " +
-        "after providing your demonstration. For fun: We will let you know how well you did " +
-        "at the end of all the games." }),
-      form);
-    activate(game);
+    testPage(context(), st);
   },
 
   feedback(st) {
-    const s = st.step;
-    const text = s.last
-      ? `You've completed all of the gameplays for the ${design(st).one ? "" : "final "}` +
-        "game! If you were curious, you " +
-        `got ${s.correct} out of ${s.total} games correct.`
-      : `You've completed all of the gameplays for this game! If you were curious, you got ` +
-        `${s.correct} out of ${s.total} games correct. Let's head over to the next one!`;
-    fill(app, h("h1", { text: "Nice work!" }), h("p", { id: "score", text }),
-      continueButton("Continue", () => advance(st.step_index, "continue"), { id: "next" }));
+    feedbackPage(context(), st);
   },
 
   demographics(st) {
-    const s = st.step;
-    const form = h("form", { id: "demographics" },
-      h("label", {}, "Do you have any comments or feedback on the study?",
-        h("textarea", { name: "comments", maxlength: "4000" })),
-      h("label", {}, "What is your age? ", h("input", { type: "number", name: "age",
-        min: "18", max: "120", required: true })),
-      h("fieldset", {}, h("legend", { text: "Which of the following most accurately " +
-        "describes you?" }), s.genders.map((g) => h("label", { class: "opt" },
-        h("input", { type: "radio", name: "gender", value: g, required: true }), ` ${g}`))),
-      h("label", {}, "What is the highest level of education you have completed? (optional) ",
-        h("select", { name: "education" }, h("option", { value: "", text: "-" }),
-          s.education.map((e) => h("option", { value: e, text: e })))));
-    const submit = continueButton("Continue", async (e) => {
-      e.preventDefault();
-      if (!form.reportValidity()) return;
-      const fd = new FormData(form);
-      submit.disabled = true;
-      await advance(st.step_index, "demographics", { age: +fd.get("age"),
-        gender: fd.get("gender"), education: fd.get("education") || null,
-        comments: fd.get("comments") || "" });
-      submit.disabled = false;
-    }, { id: "next", type: "submit" });
-    form.appendChild(submit);
-    fill(app, h("h1", { text: "Final questions" }),
-      h("p", { text: `Congratulations on getting through ${design(st).one ? "the main game"
-        : "all of the main games"}! Please ` +
-        "answer the following questions, and then click 'Continue' for instructions on " +
-        "compensation." }), form);
+    demographicsPage(context(), st);
   },
 
   complete(st) {

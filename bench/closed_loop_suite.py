@@ -1,0 +1,125 @@
+"""`bench_closed_loop_study.py --suite`: every configuration the study's load targets name,
+one after the other, each in a fresh `bench_closed_loop_study.py` process on one study
+folder made once, then one table with the load average recorded per row.
+
+First the server CPU per refused closed-loop answer (`--refusal-cost 300`), then the rows
+(N = `-n`, default 200: half closed-loop, half open-loop; one event per `--pace` s):
+
+1. SQLite, 1 server, no attackers            2. SQLite, 1 server, 2 attackers at their limits
+3. PostgreSQL, 1 server, no attackers        4. PostgreSQL, 1 server, 2 attackers
+5. PostgreSQL, 2 servers (round robin), N    6-7. PostgreSQL, 1 and 2 servers, 1.5 N
+
+Rows 3-7 need `--db postgresql+psycopg://...` (each run starts from an empty schema). The
+attackers' effect is each database's attackers row against its row without them; the
+capacity of 1 against 2 server processes is the largest N tested at which every p99
+(decisions, events, pages) is under 500 ms. Each row runs about 90 s on an idle machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+#: Targets (ms): decisions, every event, page reads; and the capacity threshold.
+TARGETS = {"decision": 500.0, "event": 300.0, "page": 300.0}
+CAPACITY_P99_MS = 500.0
+#: Largest rise of the real participants' p99 that 2 attackers may cause.
+ATTACK_RISE = 0.20
+
+
+def _rows(args: argparse.Namespace) -> list[tuple[str, list[str]]]:
+    n, big = args.participants, int(round(args.participants * 1.5))
+    rows = [("sqlite", ["-n", str(n)]),
+            ("sqlite+attack", ["-n", str(n), "--attackers", "2"])]
+    if args.db and args.db.startswith("postgresql"):
+        pg = ["--db", args.db]
+        rows += [("pg", [*pg, "-n", str(n)]),
+                 ("pg+attack", [*pg, "-n", str(n), "--attackers", "2"]),
+                 ("pg 2 servers", [*pg, "-n", str(n), "--servers", "2",
+                                   "--decision-workers", "1"]),
+                 ("pg 1.5N", [*pg, "-n", str(big)]),
+                 ("pg 2 servers 1.5N", [*pg, "-n", str(big), "--servers", "2",
+                                        "--decision-workers", "1"])]
+    return rows
+
+
+def run_suite(args: argparse.Namespace, script: Path) -> int:
+    """Run every row; print the table and the targets' verdicts. 0 if every run stored
+    every event exactly once (the latency targets are reported, not enforced)."""
+    from bench_closed_loop_study import make_study
+
+    tmp = Path(tempfile.mkdtemp(prefix="cfteach-cl-suite-"))
+    study = args.study or make_study(tmp / "study", args)
+    common = ["--pace", str(args.pace), "--max-items", str(args.max_items),
+              "--conditions", args.conditions, "--study", str(study),
+              "--timeout", str(args.timeout)]
+    results: dict[str, dict] = {}
+    t0 = time.monotonic()
+    print(f"\n== refused closed-loop answers (load average {os.getloadavg()[0]:.1f}) ==",
+          flush=True)
+    cost = subprocess.run([sys.executable, str(script), *common, "--refusal-cost", "300"],
+                          check=False, capture_output=True, text=True)
+    print(cost.stdout + cost.stderr[-2000:], flush=True)
+    for name, extra in _rows(args):
+        out = tmp / f"{name.replace(' ', '_')}.json"
+        print(f"\n== {name} (load average {os.getloadavg()[0]:.1f}) ==", flush=True)
+        proc = subprocess.run([sys.executable, str(script), *common, *extra,
+                               "--json-out", str(out)], check=False)
+        results[name] = (json.loads(out.read_text()) if out.exists()
+                         else {"failed": proc.returncode})
+    print(f"\nsuite wall time {time.monotonic() - t0:.0f} s; {os.cpu_count()} cores")
+    _table(results)
+    print("\nserver CPU per refused answer (target < 10 ms for closed-loop answers):")
+    for line in cost.stdout.splitlines():
+        if "per refusal" in line or line.startswith("load average"):
+            print(f"  {line}")
+    return 0 if all(r.get("ok") for r in results.values()) else 1
+
+
+def _ms(x: float | None) -> str:
+    return "-" if x is None else f"{x:.0f}"
+
+
+def _table(results: dict[str, dict]) -> None:
+    print("\n| run | load start, end | participants | decision p99 ms | every event p99 "
+          "ms | page p99 ms | server cores | transport errors | lost / duplicated | "
+          "targets |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name, r in results.items():
+        if "failed" in r:
+            print(f"| {name} | - | - | - | - | - | - | - | run failed (exit {r['failed']}) "
+                  "| - |")
+            continue
+        p = r["p99_ms"]
+        met = all(p[k] is not None and p[k] < t for k, t in TARGETS.items()) and r["ok"]
+        print(f"| {name} | {r['load_start']:.1f}, {r['load_end']:.1f} | {r['participants']} "
+              f"| {_ms(p['decision'])} | {_ms(p['event'])} | {_ms(p['page'])} | "
+              f"{r['server_cores']:.2f} | {r['transport_errors']} | {r['lost']} / "
+              f"{r['duplicated']} | {'met' if met else 'missed'} |")
+    for db in ("sqlite", "pg"):
+        base, hit = results.get(db), results.get(f"{db}+attack")
+        if base and hit and "failed" not in base and "failed" not in hit:
+            rises = {k: hit["p99_ms"][k] / base["p99_ms"][k] - 1 for k in TARGETS
+                     if base["p99_ms"][k] and hit["p99_ms"][k] is not None}
+            text = ", ".join(f"{k} {100 * v:+.0f}%" for k, v in rises.items())
+            ok = all(v < ATTACK_RISE for v in rises.values())
+            print(f"{db}: 2 attackers change real participants' p99 by {text} "
+                  f"(target < +{100 * ATTACK_RISE:.0f}%: {'met' if ok else 'missed'})")
+    for label, names in (("1 server", ("pg", "pg 1.5N")),
+                         ("2 servers", ("pg 2 servers", "pg 2 servers 1.5N"))):
+        runs = [results[n] for n in names if n in results and "failed" not in results[n]]
+        if not runs:
+            continue
+        good = [r["participants"] for r in runs if r["ok"] and all(
+            v is not None and v < CAPACITY_P99_MS for v in r["p99_ms"].values())]
+        tested = ", ".join(str(r["participants"]) for r in runs)
+        cap = (f"at least {max(good)}" if good else
+               f"under {min(r['participants'] for r in runs)}")
+        print(f"PostgreSQL capacity, {label} (every p99 < {CAPACITY_P99_MS:.0f} ms; "
+              f"tested {tested}): {cap} participants")

@@ -1,0 +1,45 @@
+"""Decision worker processes end when their server is killed outright (SIGKILL, out of
+memory): nothing else would stop an idle worker, which holds its lesson pools' memory."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+SERVER = """
+import sys, time
+from cfteach.study.decisions import Decider
+from cfteach.study.live import LiveTeaching
+d = Decider(LiveTeaching(), [], 1)
+print(*d._executors[0]._processes, flush=True)
+time.sleep(120)
+"""
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie has exited (its new parent reaps it)
+
+
+def test_workers_end_when_their_server_is_killed() -> None:
+    server = subprocess.Popen([sys.executable, "-c", SERVER], stdout=subprocess.PIPE, text=True)
+    try:
+        workers = [int(p) for p in server.stdout.readline().split()]  # type: ignore[union-attr]
+        assert workers and all(_alive(p) for p in workers)
+    finally:
+        server.send_signal(signal.SIGKILL)
+        server.wait()
+    deadline = time.monotonic() + 30
+    while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = [p for p in workers if _alive(p)]
+    for p in left:  # do not leave them behind if the check failed
+        os.kill(p, signal.SIGKILL)
+    assert left == []
