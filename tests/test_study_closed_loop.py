@@ -120,6 +120,24 @@ def test_init_writes_closed_loop_cells(cl_study: Path) -> None:
     assert len(pool.held_out) >= 1
 
 
+def test_live_teacher_covers_the_proposed_curriculum_first(cl_study: Path) -> None:
+    """The live pool carries `proposed` as its backbone, as `cfteach simulate` does: the
+    first lesson is the curriculum's first demonstration (same instance, same start)."""
+    s = load_study(cl_study)
+    cell = s["closed_loop"]["skateboard"]
+    shown = s["curricula"]["skateboard"]["proposed"]
+    assert [b["start_state"] for b in cell["backbone"]] == [d["states"][0] for d in shown]
+    pool = pool_from_cell(cell)
+    assert len(pool.backbone) == len(cell["backbone"]) >= 1
+    teacher = ClosedLoopTeacher(pool, settings_of(cell), seed=0)
+    first = teacher.next()
+    assert first is not None and first.purpose == "backbone"
+    lesson = first.to_json(pool)
+    assert lesson["states"][0] == shown[0]["states"][0]
+    legacy = {k: v for k, v in cell.items() if k != "backbone"}
+    assert pool_from_cell(legacy).backbone == ()
+
+
 def test_paper_study_file_is_unchanged_by_default(tmp_path: Path) -> None:
     init_study(tmp_path, toy_sources())
     s = load_study(tmp_path)

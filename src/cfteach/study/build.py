@@ -192,7 +192,13 @@ def _closed_loop_cell(src: DomainSource, instances: list, settings: dict, n_sets
                  for t in items[: per * n_sets]]
     examples = [{"layout": instance_layout(name, inst),
                  "state": inst.state_to_json(inst.initial_state)} for inst in instances[:3]]
+    # The teacher covers the `proposed` curriculum in order before it may stop, as in
+    # `cfteach simulate` (docs/closed-loop.md, "The backbone"); without one, it teaches alone.
+    proposed = src.curricula.get("proposed")
+    backbone = [{"env_index": d["env_index"], "start_state": d["start_state"]}
+                for d in (proposed or {}).get("demos", [])]
     return {"domain": name, "settings": settings, "held_out": held, "examples": examples,
+            "backbone": backbone,
             "pool": {"profile": "default", "human_models": human_models, "seed": 0}}
 
 

@@ -44,10 +44,12 @@ def settings_of(cell: dict) -> TeacherSettings:
 
 
 def pool_from_cell(cell: dict) -> LessonPool:
-    """Rebuild a domain's lesson pool from its `closed_loop` cell in study.json."""
+    """Rebuild a domain's lesson pool from its `closed_loop` cell in study.json (a study
+    made before the backbone existed has none: its teacher behaves as it did then)."""
     p = cell["pool"]
     return build_pool(cell["domain"], profile=p["profile"], human_models=p["human_models"],
-                      seed=p["seed"], held_out=list(cell["held_out"]))
+                      seed=p["seed"], held_out=list(cell["held_out"]),
+                      backbone=list(cell.get("backbone") or ()))
 
 
 def responses_of(payloads: list[dict]) -> list[dict[str, Any]]:
