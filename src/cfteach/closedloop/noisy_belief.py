@@ -276,16 +276,29 @@ class NoisyBelief(ParticleBelief):
                            for e in self.history if e["kind"] == "outcome"]
         return out
 
-    def _posterior_from(self, parts: dict[str, Any], idx: dict[str, np.ndarray]
-                        ) -> np.ndarray:
+    def _answers_policy(self, parts: dict[str, Any], beta: np.ndarray) -> np.ndarray | None:
+        """``[P, answers]``: log-likelihood of each answer's moves under the engaged policy
+        (None without answers). It depends on the points and the rationality only, so the
+        uptake and disengagement moves of `_move` reuse it."""
+        if "steps" not in parts:
+            return None
+        st = parts["steps"]
+        pol = np.zeros((len(parts["missed"]), len(st["keep"])))
+        if st["x"] is not None:
+            per_state = (self._log_policy(st["x"], beta) * st["counts"][None]).sum(2)
+            pol[:, st["keep"]] = np.add.reduceat(per_state, st["starts"], axis=1)
+        return pol
+
+    def _posterior_from(self, parts: dict[str, Any], idx: dict[str, np.ndarray],
+                        pol: np.ndarray | None = None) -> np.ndarray:
+        """Unnormalised log posterior; `pol`: `_answers_policy` for these parts and this
+        rationality, when the caller already has it."""
         v = self._values(idx)
         out = parts["missed"] * np.log1p(-v["uptake"])
         if "steps" in parts:
             st = parts["steps"]
-            pol = np.zeros((len(out), len(st["keep"])))
-            if st["x"] is not None:
-                per_state = (self._log_policy(st["x"], v["beta"]) * st["counts"][None]).sum(2)
-                pol[:, st["keep"]] = np.add.reduceat(per_state, st["starts"], axis=1)
+            if pol is None:
+                pol = self._answers_policy(parts, v["beta"])
             out = out + self._steps_ll(pol, st["n_moves"], self.batch_actions(st),
                                        v["disengaged"]).sum(axis=1)
         for e, x, ok in parts["outcomes"]:
@@ -326,15 +339,20 @@ class NoisyBelief(ParticleBelief):
         step = initial_step(pts)
         idx = {k: i.copy() for k, i in self.idx.items()}
         parts = self._parts(pts)
-        current = self._posterior_from(parts, idx)
+        # The answers' policy term is the costly one; it changes with w and beta only, so
+        # it is carried along (row by row, as accepted) instead of recomputed per grid.
+        pol = self._answers_policy(parts, self._values(idx)["beta"])
+        current = self._posterior_from(parts, idx, pol)
         rates = []
         for _ in range(self.n_moves):
             prop = tangent_proposal(pts, step, rng)
             prop_parts = self._parts(prop)
-            lp = self._posterior_from(prop_parts, idx)
+            prop_pol = self._answers_policy(prop_parts, self._values(idx)["beta"])
+            lp = self._posterior_from(prop_parts, idx, prop_pol)
             accept = np.log(rng.random(n)) < lp - current
             pts = np.where(accept[:, None], prop, pts)
             parts = _select_parts(parts, prop_parts, accept)
+            pol = _select_rows(pol, prop_pol, accept)
             current = np.where(accept, lp, current)
             rate = float(accept.mean())
             rates.append(rate)
@@ -348,9 +366,12 @@ class NoisyBelief(ParticleBelief):
                     continue
                 trial = dict(idx)
                 trial[name] = (idx[name] + rng.integers(1, k, size=n)) % k  # another value
-                lp = self._posterior_from(parts, trial)
+                trial_pol = (self._answers_policy(parts, self._values(trial)["beta"])
+                             if name == "beta" else pol)
+                lp = self._posterior_from(parts, trial, trial_pol)
                 accept = np.log(rng.random(n)) < lp - current
                 idx[name] = np.where(accept, trial[name], idx[name])
+                pol = _select_rows(pol, trial_pol, accept)
                 current = np.where(accept, lp, current)
         self.idx = idx
         self.step_size = step
@@ -383,6 +404,14 @@ def _sat(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     if not len(rows):
         return np.ones(len(points), dtype=bool)
     return np.all(points @ np.asarray(rows).T >= -TOL, axis=1)
+
+
+def _select_rows(old: np.ndarray | None, new: np.ndarray | None, take: np.ndarray
+                 ) -> np.ndarray | None:
+    """Rows of `new` where `take`, else of `old` (None stays None: no answers yet)."""
+    if old is None or new is None:
+        return old
+    return np.where(take[:, None], new, old)
 
 
 def _select_parts(old: dict[str, Any], new: dict[str, Any], take: np.ndarray) -> dict[str, Any]:
