@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy import create_engine, make_url, text
 
 from cfteach.study.build import init_study, toy_sources
 from cfteach.study.db import drop_schema, make_engine
@@ -15,14 +17,36 @@ PG_ENV = "CFTEACH_TEST_POSTGRES_URL"
 
 
 def postgres_url() -> str:
-    """The test PostgreSQL URL; fails loudly in CI when it is missing, else skips."""
+    """The test PostgreSQL URL; fails loudly in CI when it is missing, else skips.
+
+    Under pytest-xdist each worker gets its own database on the one server
+    (`<name>_gw0`, `<name>_gw1`, ...), so one worker's `drop_schema` never pulls the tables
+    from under another's test."""
     url = os.environ.get(PG_ENV)
     if not url:
         if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
             pytest.fail(f"{PG_ENV} is not set: run `source scripts/postgres-for-tests` "
                         "(scripts/test does) so the PostgreSQL tests run in CI")
         pytest.skip(f"{PG_ENV} not set (outside CI); `source scripts/postgres-for-tests`")
-    return url
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    return _worker_database(url, worker) if worker else url
+
+
+@functools.cache
+def _worker_database(url: str, worker: str) -> str:
+    """The URL of this worker's own database on the server of `url`, created if missing."""
+    base = make_url(url)
+    name = f"{base.database}_{worker}"
+    admin = create_engine(base, isolation_level="AUTOCOMMIT")
+    try:
+        with admin.connect() as conn:
+            exists = conn.execute(text("SELECT 1 FROM pg_database WHERE datname = :n"),
+                                  {"n": name}).scalar()
+            if not exists:
+                conn.execute(text(f'CREATE DATABASE "{name}"'))
+    finally:
+        admin.dispose()
+    return base.set(database=name).render_as_string(hide_password=False)
 
 
 def fresh_postgres() -> str:
