@@ -299,6 +299,7 @@ class NoisyBelief(ParticleBelief):
             st = parts["steps"]
             if pol is None:
                 pol = self._answers_policy(parts, v["beta"])
+            assert pol is not None  # there are answers ("steps" in parts)
             out = out + self._steps_ll(pol, st["n_moves"], self.batch_actions(st),
                                        v["disengaged"]).sum(axis=1)
         for e, x, ok in parts["outcomes"]:
