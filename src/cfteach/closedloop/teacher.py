@@ -373,16 +373,24 @@ class ClosedLoopTeacher:
                 usable[s] = False
         return usable
 
-    def _remedial(self, failed: Item) -> Item | None:
-        """A lesson aimed at the particles that still fail test `failed`."""
+    def _candidates(self) -> tuple[set[int], np.ndarray, np.ndarray, np.ndarray] | None:
+        """What a lesson choice starts from: the blocked demonstrations, which lesson sets
+        may be shown, which particles satisfy each set ``[K, P]`` and the belief's weights
+        (None when no lesson may be shown)."""
         if not self.pool.lessons.n_sets:
             return None
         blocked = self._blocked_lessons()
         usable = self._usable(blocked)
         if not usable.any():
             return None
-        sat = self.pool.lessons.satisfied(self.belief.particles)  # [K, P]
-        w = self.belief.weights
+        return (blocked, usable, self.pool.lessons.satisfied(self.belief.particles),
+                self.belief.weights)
+
+    def _remedial(self, failed: Item) -> Item | None:
+        """A lesson aimed at the particles that still fail test `failed`."""
+        if (cand := self._candidates()) is None:
+            return None
+        blocked, usable, sat, w = cand
         fails = self._failing(failed.demo)
         mass = np.where(usable, (~sat & fails[None]).astype(float) @ w, -1.0)
         if mass.max() <= self.settings.min_gain:
@@ -394,14 +402,9 @@ class ClosedLoopTeacher:
 
     def _lesson(self) -> Item | None:
         st = self.settings
-        if not self.pool.lessons.n_sets:
+        if (cand := self._candidates()) is None:
             return None
-        blocked = self._blocked_lessons()
-        usable = self._usable(blocked)
-        if not usable.any():
-            return None
-        sat = self.pool.lessons.satisfied(self.belief.particles)  # [K, P]
-        w = self.belief.weights
+        blocked, usable, sat, w = cand
         gain = np.where(usable, (~sat).astype(float) @ w, -1.0)
         top = gain.max()
         if top < st.min_gain:
