@@ -85,8 +85,12 @@ class Participant:
 
     def step(self) -> str:
         """The page on screen, once it is one to act on: the "preparing the next item" page
-        (a closed-loop item still being decided, e.g. on a busy machine) passes by itself."""
-        self.page.wait_for_selector("main[data-step]:not([data-step='preparing'])")
+        (a closed-loop item still being decided, e.g. on a busy machine) passes by itself.
+        The first decision of a server also builds its decision workers' lesson pool, which
+        takes seconds, and more while other test workers share the cores: a stuck page still
+        fails, after two minutes rather than thirty seconds."""
+        self.page.wait_for_selector("main[data-step]:not([data-step='preparing'])",
+                                    timeout=120_000)
         return self.page.get_attribute("main", "data-step")
 
     def wait_next_step(self, old_index: str) -> None:
