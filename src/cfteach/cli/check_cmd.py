@@ -26,6 +26,8 @@ def register(app: typer.Typer) -> None:
         `cfteach teach`: a warning above half the free memory, an error above it (--force
         checks anyway). Exits 1 if a domain has an error."""
         from cfteach import domains
+        from cfteach.bec.demos import demo_set
+        from cfteach.bec.ties import tie_findings
         from cfteach.cli._common import fail
         from cfteach.domains.check import CHECKS, errors_of, static_findings
         from cfteach.domains.size import (
@@ -64,6 +66,8 @@ def register(app: typer.Typer) -> None:
             elif not errors_of(found):
                 found = check_domain(dom)
                 planned = True
+                if not errors_of(found):
+                    found += tie_findings(demo_set(dom))
             errors = errors_of(found)
             for f in found:
                 typer.echo(f"  {f}", err=f.level == "error")

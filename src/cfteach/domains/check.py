@@ -36,6 +36,7 @@ CHECKS: tuple[tuple[str, str, bool], ...] = (
     ("unreachable_goal", "every instance's goal (or an exit) reachable from its start", True),
     ("dead_end", "no state from which the episode can no longer end", True),
     ("goal_not_optimal", "some optimal path under w* reaches the goal (else a warning)", True),
+    ("tied_reward", "w* ties no two behaviours with different features", True),
 )
 
 

@@ -20,6 +20,7 @@ from typing import Any
 
 from cfteach.bec import DEFAULT_UNBOUNDED, check_unbounded, resolve_domain
 from cfteach.bec.demos import PROFILES, check_profile, demo_set
+from cfteach.bec.ties import require_untied
 from cfteach.domains import Domain
 from cfteach.parallel import Executor
 from cfteach.teaching.common import (
@@ -102,6 +103,7 @@ def teach(domain: Domain | str, condition: str, *, profile: str = "default", see
     dom = _restrict(resolve_domain(domain), envs)
     sl = make_slice(dom, known_names(dom, known), profile)
     ds = demo_set(dom, profile)
+    require_untied(ds)  # a tie of w* leaves nothing to teach: a named error, not zeros
     k = ds.domain.max_demos if max_demos is None else _check_int("max_demos", max_demos, 1)
     p = default_proportion(profile, condition, dom.name) if proportion is None \
         else check_proportion(proportion)
@@ -163,6 +165,7 @@ def select_tests(domain: Domain | str, *, training: Iterable[Any] = (),
     dom = _restrict(resolve_domain(domain), envs)
     sl = make_slice(dom, known_names(dom, known), profile)
     ds = demo_set(dom, profile)
+    require_untied(ds)  # a tie of w* leaves nothing to teach: a named error, not zeros
     tick = _Ticker(progress, 1, f"{dom.name} tests")
     try:
         with open_executor(config, executor) as ex:
