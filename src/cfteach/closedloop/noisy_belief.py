@@ -269,7 +269,7 @@ class NoisyBelief(ParticleBelief):
             x = np.concatenate([StepData.of(e).x(points) for e in steps if len(e["rows"])],
                                axis=1) if keep.any() else None
             out["steps"] = {
-                "counts": counts, "x": x,
+                "counts": counts, "x": x, "taken": _taken(counts),
                 "starts": np.concatenate([[0], np.cumsum(sizes[keep])[:-1]]).astype(np.int64),
                 "keep": keep, "n_moves": np.array([e["counts"].sum() for e in steps])}
         out["outcomes"] = [(e, StepData.of(e).x(points), _sat(points, e["region"]))
@@ -285,9 +285,34 @@ class NoisyBelief(ParticleBelief):
         st = parts["steps"]
         pol = np.zeros((len(parts["missed"]), len(st["keep"])))
         if st["x"] is not None:
-            per_state = (self._log_policy(st["x"], beta) * st["counts"][None]).sum(2)
+            per_state = self._taken_log_policy(st["x"], beta, st["counts"], st["taken"])
             pol[:, st["keep"]] = np.add.reduceat(per_state, st["starts"], axis=1)
         return pol
+
+    def _taken_log_policy(self, x: np.ndarray, beta: np.ndarray, counts: np.ndarray,
+                          taken: tuple[np.ndarray, ...]) -> np.ndarray:
+        """``[P, G]``: ``sum_a counts[g, a] * log pi(a | s_g)``, the same numbers as
+        ``(self._log_policy(x, beta) * counts).sum(2)`` (bit for bit) at a fraction of the
+        cost: the normaliser by pairwise `logaddexp` over the action slices (what
+        ``logaddexp.reduce`` does, without its slow strided loop), and the lapse mixture
+        only at the actions taken in a state where one action was taken (the other terms
+        are zeros); states with several actions taken go the long way."""
+        one_g, one_a, one_c, many_g = taken
+        out = np.empty(x.shape[:2])
+        if len(one_g):
+            logits = beta[:, None, None] * x[:, one_g, :]
+            lse = logits[:, :, 0].copy()
+            for a in range(1, x.shape[2]):
+                np.logaddexp(lse, logits[:, :, a], out=lse)
+            logp = logits[:, np.arange(len(one_g)), one_a] - lse
+            if self.lapse > 0:
+                logp = np.logaddexp(math.log1p(-self.lapse) + logp,
+                                    math.log(self.lapse / x.shape[2]))
+            out[:, one_g] = logp * one_c[None]
+        if len(many_g):
+            out[:, many_g] = (self._log_policy(x[:, many_g], beta)
+                              * counts[many_g][None]).sum(2)
+        return out
 
     def _posterior_from(self, parts: dict[str, Any], idx: dict[str, np.ndarray],
                         pol: np.ndarray | None = None) -> np.ndarray:
@@ -405,6 +430,16 @@ def _sat(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     if not len(rows):
         return np.ones(len(points), dtype=bool)
     return np.all(points @ np.asarray(rows).T >= -TOL, axis=1)
+
+
+def _taken(counts: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The states of `counts` ``[G, A]`` where one action was taken (state, action, count)
+    and those where several were (`NoisyBelief._taken_log_policy`)."""
+    n_taken = (counts != 0).sum(axis=1)
+    one = np.flatnonzero(n_taken == 1)
+    many = np.flatnonzero(n_taken != 1)
+    act = np.argmax(counts[one] != 0, axis=1) if len(one) else np.zeros(0, np.int64)
+    return one, act, counts[one, act], many
 
 
 def _select_rows(old: np.ndarray | None, new: np.ndarray | None, take: np.ndarray
