@@ -182,7 +182,7 @@ def main() -> int:
             for _ in range(args.servers)]
         bases = [b for b, _ in servers]
         pids = [p.pid for _, p in servers]
-        cpu0, own0, load0 = _tree_cpu(pids), _own_cpu(), os.getloadavg()[0]
+        cpu0, own0, load0 = _split_cpu(pids), _own_cpu(), os.getloadavg()[0]
         stop = threading.Event()
         attackers = _attackers(bases, args, stop)
         try:
@@ -196,7 +196,8 @@ def main() -> int:
         stop.set()
         for t in attackers:
             t.join(30)
-        cpu = (_tree_cpu(pids) - cpu0, _own_cpu() - own0)
+        cpu1 = _split_cpu(pids)
+        cpu = (cpu1[0] - cpu0[0], cpu1[1] - cpu0[1], _own_cpu() - own0)
     print(f"load average at start {load0:.1f}")
     return _report(db, sent, times, wall, cpu, args, load0)
 
@@ -218,14 +219,20 @@ def _cpu(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _tree_cpu(pids: list[int]) -> float:
-    """CPU seconds of the server processes and their children (the decision workers)."""
-    total = 0.0
+def _split_cpu(pids: list[int]) -> tuple[float, float]:
+    """CPU seconds of the server processes and of their children (the decision workers)."""
+    own = kids_cpu = 0.0
     for pid in pids:
         kids = Path(f"/proc/{pid}/task/{pid}/children")
         children = kids.read_text().split() if kids.exists() else []
-        total += _cpu(pid) + sum(_cpu(int(c)) for c in children)
-    return total
+        own += _cpu(pid)
+        kids_cpu += sum(_cpu(int(c)) for c in children)
+    return own, kids_cpu
+
+
+def _tree_cpu(pids: list[int]) -> float:
+    """CPU seconds of the server processes and their children (the decision workers)."""
+    return sum(_split_cpu(pids))
 
 
 def _refusal_cost(study: Path, db: str, n: int) -> int:
@@ -363,9 +370,19 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
           f"decision worker(s); participants: {args.participants} at once ({args.conditions}),"
           f" one event per {args.pace:g} s each; attackers {args.attackers}; wall time "
           f"{wall:.0f} s; {events} events acknowledged ({events / wall:.0f}/s)")
-    print(f"CPU: server {cpu[0]:.0f} s ({cpu[0] / wall:.2f} cores), simulated participants "
-          f"{cpu[1]:.0f} s ({cpu[1] / wall:.2f} cores); load average {load0:.1f} at start, "
+    requests = sum(len(times[k]) for k in ("page", "event", "wait", "other"))
+    conds = [c.strip() for c in args.conditions.split(",") if c.strip()]
+    closed = args.participants // len(conds) if "closed_loop" in conds else 0
+    decisions = len(times["decision"]) + closed  # + each session's first item
+    server = cpu[0] + cpu[1]
+    print(f"CPU: server {server:.0f} s ({server / wall:.2f} cores: web server "
+          f"{cpu[0] / wall:.2f}, decision workers {cpu[1] / wall:.2f}), simulated participants"
+          f" {cpu[2]:.0f} s ({cpu[2] / wall:.2f} cores); load average {load0:.1f} at start, "
           f"{load1:.1f} at end on {os.cpu_count()} cores")
+    print(f"CPU per request (web server): {1000 * cpu[0] / max(1, requests):.1f} ms over "
+          f"{requests} requests; per decision (workers): "
+          f"{1000 * cpu[1] / max(1, decisions):.0f} ms over about {decisions}; "
+          f"decisions {decisions / wall:.1f}/s")
     print(f"page (GET /api/state):       {_pct(times['page'])}")
     print(f"every event (POST):          {_pct(times['event'])}")
     print(f"decisions (item_done -> next item shown): {_pct(times['decision'])}")
@@ -387,7 +404,9 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
             "db": kind, "servers": args.servers, "workers": args.decision_workers,
             "participants": args.participants, "pace": args.pace,
             "attackers": args.attackers, "wall_s": wall, "events": events,
-            "load_start": load0, "load_end": load1, "server_cores": cpu[0] / wall,
+            "load_start": load0, "load_end": load1, "server_cores": server / wall,
+            "web_cores": cpu[0] / wall, "worker_cores": cpu[1] / wall,
+            "client_cores": cpu[2] / wall,
             "p99_ms": {k: _p99(times[k]) for k in ("decision", "event", "page")},
             "transport_errors": len(resets), "lost": lost, "duplicated": dup,
             "completed": done, "ok": ok}))
