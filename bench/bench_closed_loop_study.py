@@ -140,6 +140,8 @@ def main() -> int:
     ap.add_argument("--pace", type=float, default=2.0, help="seconds between one "
                     "participant's events")
     ap.add_argument("--max-items", type=int, default=12, help="teacher's max_items")
+    ap.add_argument("--teacher", default="", help="more teacher settings for the study file "
+                    "as field=value,... (e.g. n_particles=250; default: the teacher's own)")
     ap.add_argument("--db", default=None, help="database URL (default: a fresh SQLite file)")
     ap.add_argument("--conditions", default="closed_loop,proposed",
                     help="study conditions (assignment balances over them)")
@@ -155,6 +157,8 @@ def main() -> int:
     ap.add_argument("--study", type=Path, default=None, help="a study folder made by an "
                     "earlier run (skateboard, the same --conditions and --max-items)")
     ap.add_argument("--json-out", type=Path, default=None, help="also write the figures here")
+    ap.add_argument("--suite-teacher", default="n_particles=250", help="--suite: the "
+                    "live-teacher row's settings (field=value,...)")
     ap.add_argument("--suite", action="store_true", help="run every configuration (SQLite, "
                     "PostgreSQL from --db, attackers, 1 and 2 servers) and print one table")
     args = ap.parse_args()
@@ -204,9 +208,12 @@ def main() -> int:
 
 def make_study(folder: Path, args: argparse.Namespace) -> Path:
     """The benchmark's skateboard study (placeholder post-tests, 10 ms demonstration steps)."""
+    from cfteach.cli.simulate_cmd import _teacher_settings
+
     conds = [c.strip() for c in args.conditions.split(",") if c.strip()]
+    extra = [x for x in args.teacher.split(",") if x.strip()]
     init_study(folder, preview_sources(["skateboard"]), demo_step_ms=10, conditions=conds,
-               teacher={"max_items": args.max_items})
+               teacher={"max_items": args.max_items, **_teacher_settings(extra)})
     return folder
 
 
@@ -367,7 +374,8 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
     events = sum(sent.values())
     load1 = os.getloadavg()[0]
     print(f"database: {kind}; {args.servers} server process(es) x {args.decision_workers} "
-          f"decision worker(s); participants: {args.participants} at once ({args.conditions}),"
+          f"decision worker(s); teacher {args.teacher or 'default'}; participants: "
+          f"{args.participants} at once ({args.conditions}),"
           f" one event per {args.pace:g} s each; attackers {args.attackers}; wall time "
           f"{wall:.0f} s; {events} events acknowledged ({events / wall:.0f}/s)")
     requests = sum(len(times[k]) for k in ("page", "event", "wait", "other"))
@@ -403,7 +411,8 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
         args.json_out.write_text(json.dumps({
             "db": kind, "servers": args.servers, "workers": args.decision_workers,
             "participants": args.participants, "pace": args.pace,
-            "attackers": args.attackers, "wall_s": wall, "events": events,
+            "attackers": args.attackers, "teacher": args.teacher,
+            "wall_s": wall, "events": events,
             "load_start": load0, "load_end": load1, "server_cores": server / wall,
             "web_cores": cpu[0] / wall, "worker_cores": cpu[1] / wall,
             "client_cores": cpu[2] / wall,
