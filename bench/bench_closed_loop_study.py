@@ -140,6 +140,8 @@ def main() -> int:
     ap.add_argument("--pace", type=float, default=2.0, help="seconds between one "
                     "participant's events")
     ap.add_argument("--max-items", type=int, default=12, help="teacher's max_items")
+    ap.add_argument("--teacher", default="", help="more teacher settings for the study file "
+                    "as field=value,... (e.g. n_particles=250; default: the teacher's own)")
     ap.add_argument("--db", default=None, help="database URL (default: a fresh SQLite file)")
     ap.add_argument("--conditions", default="closed_loop,proposed",
                     help="study conditions (assignment balances over them)")
@@ -155,6 +157,8 @@ def main() -> int:
     ap.add_argument("--study", type=Path, default=None, help="a study folder made by an "
                     "earlier run (skateboard, the same --conditions and --max-items)")
     ap.add_argument("--json-out", type=Path, default=None, help="also write the figures here")
+    ap.add_argument("--suite-teacher", default="n_particles=250", help="--suite: the "
+                    "live-teacher row's settings (field=value,...)")
     ap.add_argument("--suite", action="store_true", help="run every configuration (SQLite, "
                     "PostgreSQL from --db, attackers, 1 and 2 servers) and print one table")
     args = ap.parse_args()
@@ -182,7 +186,7 @@ def main() -> int:
             for _ in range(args.servers)]
         bases = [b for b, _ in servers]
         pids = [p.pid for _, p in servers]
-        cpu0, own0, load0 = _tree_cpu(pids), _own_cpu(), os.getloadavg()[0]
+        cpu0, own0, load0 = _split_cpu(pids), _own_cpu(), os.getloadavg()[0]
         stop = threading.Event()
         attackers = _attackers(bases, args, stop)
         try:
@@ -196,16 +200,20 @@ def main() -> int:
         stop.set()
         for t in attackers:
             t.join(30)
-        cpu = (_tree_cpu(pids) - cpu0, _own_cpu() - own0)
+        cpu1 = _split_cpu(pids)
+        cpu = (cpu1[0] - cpu0[0], cpu1[1] - cpu0[1], _own_cpu() - own0)
     print(f"load average at start {load0:.1f}")
     return _report(db, sent, times, wall, cpu, args, load0)
 
 
 def make_study(folder: Path, args: argparse.Namespace) -> Path:
     """The benchmark's skateboard study (placeholder post-tests, 10 ms demonstration steps)."""
+    from cfteach.cli.simulate_cmd import _teacher_settings
+
     conds = [c.strip() for c in args.conditions.split(",") if c.strip()]
+    extra = [x for x in args.teacher.split(",") if x.strip()]
     init_study(folder, preview_sources(["skateboard"]), demo_step_ms=10, conditions=conds,
-               teacher={"max_items": args.max_items})
+               teacher={"max_items": args.max_items, **_teacher_settings(extra)})
     return folder
 
 
@@ -218,14 +226,20 @@ def _cpu(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _tree_cpu(pids: list[int]) -> float:
-    """CPU seconds of the server processes and their children (the decision workers)."""
-    total = 0.0
+def _split_cpu(pids: list[int]) -> tuple[float, float]:
+    """CPU seconds of the server processes and of their children (the decision workers)."""
+    own = kids_cpu = 0.0
     for pid in pids:
         kids = Path(f"/proc/{pid}/task/{pid}/children")
         children = kids.read_text().split() if kids.exists() else []
-        total += _cpu(pid) + sum(_cpu(int(c)) for c in children)
-    return total
+        own += _cpu(pid)
+        kids_cpu += sum(_cpu(int(c)) for c in children)
+    return own, kids_cpu
+
+
+def _tree_cpu(pids: list[int]) -> float:
+    """CPU seconds of the server processes and their children (the decision workers)."""
+    return sum(_split_cpu(pids))
 
 
 def _refusal_cost(study: Path, db: str, n: int) -> int:
@@ -360,12 +374,23 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
     events = sum(sent.values())
     load1 = os.getloadavg()[0]
     print(f"database: {kind}; {args.servers} server process(es) x {args.decision_workers} "
-          f"decision worker(s); participants: {args.participants} at once ({args.conditions}),"
+          f"decision worker(s); teacher {args.teacher or 'default'}; participants: "
+          f"{args.participants} at once ({args.conditions}),"
           f" one event per {args.pace:g} s each; attackers {args.attackers}; wall time "
           f"{wall:.0f} s; {events} events acknowledged ({events / wall:.0f}/s)")
-    print(f"CPU: server {cpu[0]:.0f} s ({cpu[0] / wall:.2f} cores), simulated participants "
-          f"{cpu[1]:.0f} s ({cpu[1] / wall:.2f} cores); load average {load0:.1f} at start, "
+    requests = sum(len(times[k]) for k in ("page", "event", "wait", "other"))
+    conds = [c.strip() for c in args.conditions.split(",") if c.strip()]
+    closed = args.participants // len(conds) if "closed_loop" in conds else 0
+    decisions = len(times["decision"]) + closed  # + each session's first item
+    server = cpu[0] + cpu[1]
+    print(f"CPU: server {server:.0f} s ({server / wall:.2f} cores: web server "
+          f"{cpu[0] / wall:.2f}, decision workers {cpu[1] / wall:.2f}), simulated participants"
+          f" {cpu[2]:.0f} s ({cpu[2] / wall:.2f} cores); load average {load0:.1f} at start, "
           f"{load1:.1f} at end on {os.cpu_count()} cores")
+    print(f"CPU per request (web server): {1000 * cpu[0] / max(1, requests):.1f} ms over "
+          f"{requests} requests; per decision (workers): "
+          f"{1000 * cpu[1] / max(1, decisions):.0f} ms over about {decisions}; "
+          f"decisions {decisions / wall:.1f}/s")
     print(f"page (GET /api/state):       {_pct(times['page'])}")
     print(f"every event (POST):          {_pct(times['event'])}")
     print(f"decisions (item_done -> next item shown): {_pct(times['decision'])}")
@@ -386,8 +411,11 @@ def _report(db: str, sent: dict[str, int], times: dict, wall: float,
         args.json_out.write_text(json.dumps({
             "db": kind, "servers": args.servers, "workers": args.decision_workers,
             "participants": args.participants, "pace": args.pace,
-            "attackers": args.attackers, "wall_s": wall, "events": events,
-            "load_start": load0, "load_end": load1, "server_cores": cpu[0] / wall,
+            "attackers": args.attackers, "teacher": args.teacher,
+            "wall_s": wall, "events": events,
+            "load_start": load0, "load_end": load1, "server_cores": server / wall,
+            "web_cores": cpu[0] / wall, "worker_cores": cpu[1] / wall,
+            "client_cores": cpu[2] / wall,
             "p99_ms": {k: _p99(times[k]) for k in ("decision", "event", "page")},
             "transport_errors": len(resets), "lost": lost, "duplicated": dup,
             "completed": done, "ok": ok}))

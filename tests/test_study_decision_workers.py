@@ -43,3 +43,18 @@ def test_workers_end_when_their_server_is_killed() -> None:
     for p in left:  # do not leave them behind if the check failed
         os.kill(p, signal.SIGKILL)
     assert left == []
+
+
+def test_workers_decide_at_a_lower_os_priority() -> None:
+    """Decisions yield the CPU to the web server: on a saturated machine the server's
+    events and page reads are served first and decisions wait (docs/study.md, "Load")."""
+    from cfteach.study.decisions import Decider
+    from cfteach.study.live import LiveTeaching
+
+    d = Decider(LiveTeaching(), [], 1)
+    try:
+        worker = d._executors[0].submit(os.nice, 0).result(timeout=120)
+    finally:
+        d.close()
+    server = os.nice(0)
+    assert worker > server or server == 19

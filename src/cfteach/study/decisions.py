@@ -33,6 +33,10 @@ MAX_FUTURES = 4096
 WARM_TIMEOUT_S = 600.0
 #: Seconds between a worker's checks that its server is still there.
 PARENT_CHECK_S = 1.0
+#: How much lower than its server a decision worker runs (os.nice). On a saturated machine
+#: the server's event and page requests (a few ms each) then win the CPU, and decisions
+#: (tens of ms each, which the page already waits for behind "preparing") take what is left.
+DECISION_NICE = 10
 
 _WORKER_LIVE: LiveTeaching | None = None
 
@@ -58,6 +62,7 @@ def _worker_init(studies: list[dict]) -> None:
     """In each worker process: one `LiveTeaching` with every pool built now (at start)."""
     global _WORKER_LIVE
     threading.Thread(target=_exit_with, args=(os.getppid(),), daemon=True).start()
+    os.nice(DECISION_NICE)
     _WORKER_LIVE = LiveTeaching()
     for s in studies:
         _WORKER_LIVE.warm(s)
