@@ -13,6 +13,8 @@ Markers (registered in pyproject.toml) select the tiers: `--quick` runs
   list. A name that no longer matches a test of its file stops the run with one line
   (when whole files are collected), so the list cannot rot silently. Tests marked `slow` in
   their own file (R reference fits, pipelines) stay so; this list only adds.
+- Files with browser or slow tests are collected first (`_long_files_first`), so that
+  `--dist loadfile` starts them early rather than leaving one to run alone at the end.
 """
 
 from __future__ import annotations
@@ -97,6 +99,18 @@ SLOW: dict[str, frozenset[str] | str] = {
 }
 
 
+def _long_files_first(items: list[pytest.Item]) -> None:
+    """Files with browser or slow tests first, each file's tests kept together and in
+    order: `--dist loadfile` hands files out in this order, so the long ones start early
+    instead of one of them running alone at the end while the other workers idle."""
+    rank: dict[str, int] = {}
+    for item in items:
+        long = item.get_closest_marker("browser") or item.get_closest_marker("slow")
+        file = str(item.path)
+        rank[file] = min(rank.get(file, 1), 0 if long else 1)
+    items.sort(key=lambda item: rank[str(item.path)])  # stable: files stay in order
+
+
 def _function(item: pytest.Item) -> str:
     return getattr(item, "originalname", None) or item.name.split("[")[0]
 
@@ -115,6 +129,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         if listed is not None and (listed == "*" or name in listed):
             if item.get_closest_marker("slow") is None:
                 item.add_marker(pytest.mark.slow)
+    _long_files_first(items)
     if any("::" in str(a) for a in config.args):
         return  # only some tests of a file were collected: nothing to compare with
     stale = [f"{f}::{n}" for f, names in SLOW.items() if f in seen and names != "*"
