@@ -15,6 +15,7 @@ review measured page p99 of 0.5-1.8 s with 100 closed-loop participants).
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import multiprocessing as mp
 import os
@@ -188,3 +189,20 @@ def result_or_none(fut: Future, timeout: float) -> tuple[bool, Any]:
         return False, None
     except Exception:  # noqa: BLE001 - a worker's failure: retried on the next read
         return False, None
+
+
+async def result_or_none_async(fut: Future, timeout: float) -> tuple[bool, Any]:
+    """`result_or_none` for the event loop, holding no thread while it waits.
+
+    A decision that has already finished is taken at once: `asyncio.wait_for` of a
+    wrapped future with a timeout of 0 always times out (the wrapper only learns the
+    result on the loop's next turn), so a page polling with ``wait=0`` would never
+    record a decision that missed its event's short wait, and stay "preparing"."""
+    if fut.done():
+        return result_or_none(fut, 0.0)
+    try:
+        out = await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(fut)),
+                                     max(0.0, timeout))
+    except Exception:  # noqa: BLE001 - not ready in time, or failed: retried later
+        return False, None
+    return True, out

@@ -51,7 +51,10 @@ def take_screenshots(study_dir: str | Path, out: str | Path, *, prefix: str = "s
             headers = {"X-Session-Token": token}
             seen: set[str] = set()
             while True:
-                st = c.get("/api/state", headers=headers).json()
+                # wait (up to 5 s a read) while a closed-loop item is being decided
+                st = c.get("/api/state", headers=headers, params={"wait": 5}).json()
+                if st["step"].get("preparing"):
+                    continue
                 kind = st["step"]["kind"]
                 name = kind.replace("_", "-")
                 if kind in ("demos", "test"):  # one per domain: each has its own look

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import hmac
 import random
 import re
@@ -24,7 +23,7 @@ from . import schemas
 from .assignment import all_cells, cell_counts, choose_cell, completed_counts
 from .closed_loop_steps import MAX_WAIT_S, ClosedLoopSteps
 from .db import durable_barrier
-from .decisions import Decider
+from .decisions import Decider, result_or_none_async
 from .errors import ApiError
 from .games import ScoringError, replay
 from .identity import find_participant, participant_key, study_key
@@ -187,10 +186,8 @@ class StudyService(PageViews, ClosedLoopSteps):
                 return view
             fut = self.decider.submit(self._studies[job["version"]], job["pk"],
                                       job["seed"], job["domain"], job["responses"])
-            try:
-                result = await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(fut)),
-                                                wait)
-            except Exception:  # noqa: BLE001 - not ready in time, or failed: retried later
+            done, result = await result_or_none_async(fut, wait)
+            if not done:
                 if fut.done():
                     self.decider.heal(fut)
                 return view
