@@ -178,3 +178,32 @@ def test_equal_budget_repeats_the_curriculum_from_the_start():
     assert [d["n"] for d in equal_budget_demos(cur, 7)] == [0, 1, 2, 0, 1, 2, 0]
     assert [d["n"] for d in equal_budget_demos(cur, 2)] == [0, 1]
     assert equal_budget_demos({"demos": []}, 4) == []
+
+
+def test_probe_tests_are_the_probes_never_a_held_out_test(material):
+    """The tests a simulation measures learners on are exactly the teacher's probes: their
+    starts are the probes' starts, none is a post-test's, and their optimal reward equals
+    the robot's value at that start from value iteration (an independent computation)."""
+    from cfteach.closedloop.items import demo_json
+    from cfteach.closedloop.probes import probe_demos, probe_tests
+
+    _, tests, pool = material
+    n = TeacherSettings().n_probes
+    demos, shown = probe_demos(pool, n), probe_tests(pool, n)
+    assert len(shown) == len(demos) > 0
+    held = {(demo_json(pool.ds, d)["env_index"], json_key(demo_json(pool.ds, d)["start_state"]))
+            for d in pool.held_out}
+    for d, t in zip(demos.tolist(), shown, strict=True):
+        ref = demo_json(pool.ds, d)
+        assert t["env_index"] == ref["env_index"] and t["start_state"] == ref["start_state"]
+        assert (t["env_index"], json_key(t["start_state"])) not in held
+    learner = Learners(load(DOMAIN), "counterfactual", 1, rng=np.random.default_rng(0))
+    unscored = [{k: v for k, v in t.items() if k != "optimal_reward"} for t in shown]
+    np.testing.assert_allclose(learner.answer(unscored)["optimal_reward"],
+                               [t["optimal_reward"] for t in shown], atol=1e-9)
+
+
+def json_key(state) -> str:
+    import json
+
+    return json.dumps(state, sort_keys=True)

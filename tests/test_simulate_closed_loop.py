@@ -63,6 +63,12 @@ def test_calibration_and_ratios_are_well_formed(sweep):
     assert cal["observed"] == pytest.approx(float(per.mean()))
     pred = sweep.beliefs.loc[sweep.beliefs["condition"] == "closed_loop", "predicted"]
     assert cal["predicted"] == pytest.approx(float(pred.mean()))
+    # the learners' P(optimal) on the teacher's own probes: closed loop only, in [0, 1]
+    b = sweep.beliefs
+    on_probes = b.loc[b["condition"] == "closed_loop", "probe_observed"].to_numpy(float)
+    assert np.all((on_probes >= 0) & (on_probes <= 1))
+    assert np.isnan(b.loc[b["condition"] == "proposed", "probe_observed"]).all()
+    assert cal["observed_on_probes"] == pytest.approx(float(on_probes.mean()))
     cells = summ["ratios"]["cells"]["inattentive"]["skateboard"]
     assert set(cells) == {"closed_loop/proposed", "closed_loop/proposed_equal_budget",
                           "closed_loop/proposed_equal_items"}

@@ -65,3 +65,7 @@ def test_calibration_table_by_hand():
     assert cal["predicted"] == pytest.approx(0.6) and cal["observed"] == pytest.approx(0.5)
     assert cal["gap"] == pytest.approx(0.1)
     assert cal["correlation"] == pytest.approx(np.corrcoef([0.9, 0.6, 0.3], observed)[0, 1])
+    assert cal["observed_on_probes"] is None  # not measured
+    beliefs["probe_observed"] = [1.0, np.nan, 0.5]  # a learner without probes is left out
+    cal = calibration_table(_answers(rows), beliefs)["m"]["d"]
+    assert cal["observed_on_probes"] == pytest.approx(0.75)

@@ -57,6 +57,19 @@ def probe_paths(pool: LessonPool, n: int) -> tuple[StepData, np.ndarray]:
     return pool.cache[key]
 
 
+def probe_tests(pool: LessonPool, n: int) -> list[dict]:
+    """The probes as tests a learner can answer (start, environment, optimal reward): lets
+    a simulation measure a learner on exactly the items the teacher predicts on."""
+    from cfteach.closedloop.items import demo_json
+
+    out = []
+    for d in probe_demos(pool, n).tolist():
+        shown = demo_json(pool.ds, d)
+        out.append({**{k: shown[k] for k in ("env_code", "env_index", "start_state")},
+                    "optimal_reward": pool.ds.reward(d)})
+    return out
+
+
 def region_sat(pool: LessonPool, demos: np.ndarray, particles: np.ndarray) -> np.ndarray:
     """``[P, len(demos)]``: particle p answers test d optimally by its weights (BEC')."""
     sets = pool.tests

@@ -78,7 +78,7 @@ def run_session(teacher: Any, learners: Any) -> dict[str, int]:
 
 def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
     """Teach and test one block of learners, each with its own teacher; runs in a worker."""
-    from cfteach.closedloop import ClosedLoopTeacher, TeacherSettings
+    from cfteach.closedloop import ClosedLoopTeacher, TeacherSettings, probes
     from cfteach.simulate.learners import Learners
 
     dom = load_domain(chunk["domain"])
@@ -89,7 +89,8 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
     keys = ("correct", "reward", "finished", "contains_w_star", "belief_area",
             "belief_area_se", "belief_constraints", "ignored_updates")
     out: dict[str, list] = {k: [] for k in (*keys, "items", "demos", "tests", "feedback",
-                                            "predicted", "knowledge")}
+                                            "predicted", "knowledge", "probe_observed")}
+    probe_tests = probes.probe_tests(pool, settings.n_probes)
     for child in ss.spawn(chunk["n"]):
         learner_rng, teacher_seed = np.random.default_rng(child), child.generate_state(1)[0]
         learners = Learners(dom, chunk["model"], 1, rng=learner_rng)
@@ -97,6 +98,10 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
         counts = run_session(teacher, learners)
         pred = teacher.prediction()  # on the teacher's own probes, at its stop
         ans = learners.answer(chunk["tests"]) if chunk["tests"] else None
+        # then the teacher's own probes (after the post-tests: their answers are unchanged),
+        # to tell a miscalibrated model apart from probes unlike the post-tests
+        on_probes = (float(learners.answer(probe_tests)["correct"][0].mean())
+                     if probe_tests else np.nan)
         areas, se = learners.belief_area_estimates()
         for k, v in (("correct", None if ans is None else ans["correct"][0]),
                      ("reward", None if ans is None else ans["reward"][0]),
@@ -108,7 +113,8 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
                      ("items", sum(counts.values())), ("demos", counts["demonstration"]),
                      ("tests", counts["test"]), ("feedback", counts["feedback"]),
                      ("predicted", np.nan if pred["predicted"] is None else pred["predicted"]),
-                     ("knowledge", np.nan if pred["knowledge"] is None else pred["knowledge"])):
+                     ("knowledge", np.nan if pred["knowledge"] is None else pred["knowledge"]),
+                     ("probe_observed", on_probes)):
             out[k].append(v)
     res: dict[str, Any] = {k: np.asarray(v) for k, v in out.items()}
     res["optimal_reward"] = None if ans is None else ans["optimal_reward"]

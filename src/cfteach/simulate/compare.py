@@ -72,15 +72,19 @@ def ratio_table(answers: pd.DataFrame, *, seed: int = 0) -> dict[str, Any]:
 
 def calibration_table(answers: pd.DataFrame, beliefs: pd.DataFrame
                       ) -> dict[str, dict[str, dict[str, Any]]]:
-    """``calibration[learner][domain] = {predicted, observed, n, gap, correlation}``: the
-    closed-loop teacher's mean predicted P(optimal) at its stop (on its own probes, never
-    the post-tests), the learners' mean observed P(optimal) on the post-tests, their
-    difference and the per-learner Pearson correlation (None when either does not vary)."""
+    """``calibration[learner][domain] = {predicted, observed, n, gap, correlation,
+    observed_on_probes}``: the closed-loop teacher's mean predicted P(optimal) at its stop
+    (on its own probes, never the post-tests), the learners' mean observed P(optimal) on
+    the post-tests, their difference, the per-learner Pearson correlation (None when either
+    does not vary) and the learners' mean P(optimal) on the teacher's probes themselves
+    (None when not measured): `predicted` against it is the model's error alone."""
     if answers.empty or "predicted" not in beliefs.columns:
         return {}
     per = per_learner(answers[answers["condition"] == CLOSED])
     b = beliefs[beliefs["condition"] == CLOSED]
-    m = per.merge(b[["learner_model", "domain", "seed", "learner", "predicted"]],
+    cols = ["learner_model", "domain", "seed", "learner", "predicted"]
+    cols += ["probe_observed"] if "probe_observed" in b.columns else []
+    m = per.merge(b[cols],
                   on=["learner_model", "domain", "seed", "learner"])
     out: dict[str, dict[str, dict[str, Any]]] = {}
     for (model, dom), g in m.groupby(["learner_model", "domain"], observed=True):
@@ -92,5 +96,15 @@ def calibration_table(answers: pd.DataFrame, beliefs: pd.DataFrame
                 if len(g) >= 3 and np.ptp(pred) > 0 and np.ptp(obs) > 0 else None)
         out.setdefault(str(model), {})[str(dom)] = {
             "predicted": float(pred.mean()), "observed": float(obs.mean()), "n": int(len(g)),
-            "gap": float(pred.mean() - obs.mean()), "correlation": corr}
+            "gap": float(pred.mean() - obs.mean()), "correlation": corr,
+            "observed_on_probes": _mean_finite(g.get("probe_observed"))}
     return out
+
+
+def _mean_finite(col: pd.Series | None) -> float | None:
+    """Mean of the finite values (None when there are none)."""
+    if col is None:
+        return None
+    v = col.to_numpy(float)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if len(v) else None

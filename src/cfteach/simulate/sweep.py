@@ -195,6 +195,7 @@ def _simulate_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
         "feedback": np.zeros(chunk["n"], dtype=np.int64),
         "predicted": np.full(chunk["n"], np.nan),
         "knowledge": np.full(chunk["n"], np.nan),
+        "probe_observed": np.full(chunk["n"], np.nan),
     }
 
 
@@ -368,7 +369,8 @@ def simulate(material: list[Material], learner_models: Sequence[str | LearnerMod
             "belief_constraints": res["belief_constraints"],
             "ignored_updates": res["ignored_updates"], "items": res["items"],
             "demos": res["demos"], "tests": res["tests"], "feedback": res["feedback"],
-            "predicted": res["predicted"], "knowledge": res["knowledge"]}))
+            "predicted": res["predicted"], "knowledge": res["knowledge"],
+            "probe_observed": res["probe_observed"]}))
         if res["correct"] is None:
             continue
         n, t = res["correct"].shape
