@@ -54,7 +54,10 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
                     "items": [it.to_json(pool) for it in teacher.items],
                     "stop": teacher.stop_reason,
                     "particles": b.particles.copy(), "log_weights": b.log_weights.copy(),
-                    "idx": {k: v.copy() for k, v in getattr(b, "idx", {}).items()},
+                    # A grid of one value carries no information (its index is 0 everywhere),
+                    # so a new grid that is off compares equal to its absence.
+                    "idx": {k: v.copy() for k, v in getattr(b, "idx", {}).items()
+                            if len(b.grids[k]) > 1},
                     "responses": teacher.responses}
                 print(f"{name}/{kind}/{s}: {len(teacher.items)} items", flush=True)
     return out

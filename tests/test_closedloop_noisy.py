@@ -57,7 +57,7 @@ def test_answer_likelihood_matches_a_step_by_step_computation(skate):
     w = np.array([[-0.2, -0.5, -0.84], [-0.9, -0.1, -0.42]])
     w /= np.linalg.norm(w, axis=1, keepdims=True)
     belief = NoisyBelief(load("skateboard").prior, 3, particles=w, lapse=0.03,
-                         rationality=(7.0, 40.0), disengaged=(0.1, 0.3))
+                         rationality=(7.0, 40.0), disengaged=(0.1, 0.3), confused=(0.0,))
     belief.idx["beta"] = np.array([0, 1])
     belief.idx["disengaged"] = np.array([1, 0])
     got = belief._entry_ll({"kind": "steps", **answer_steps(ds, e, states, acts).to_json()},
@@ -83,7 +83,7 @@ def test_predicted_success_matches_a_path_enumeration(skate):
     w = np.array([[-0.15, -0.45, -0.88]])
     w /= np.linalg.norm(w)
     belief = NoisyBelief(load("skateboard").prior, 3, particles=w, lapse=0.02,
-                         rationality=(30.0,), disengaged=(0.1,))
+                         rationality=(30.0,), disengaged=(0.1,), confused=(0.0,))
     data, starts = path_steps(ds, [d])
     got = belief.predicted(np.ones((1, 1), bool), data, starts)[0]
     A, pol, rand = ds.batch.A, 1.0, 1.0
@@ -95,6 +95,125 @@ def test_predicted_success_matches_a_path_enumeration(skate):
         pol *= 0.98 * soft[opt].sum() + 0.02 * opt.sum() / A
         rand *= opt.sum() / A
     assert got == pytest.approx(0.9 * pol + 0.1 * rand, rel=1e-9)
+
+
+# -- the confusion term, against a mixture computed by hand --------------------------------
+def _step_loglik(ds, e, w, beta, lapse, states, acts):
+    """log prod_t pi(a_t | s_t) for one weight vector, state by state."""
+    A, ll = ds.batch.A, 0.0
+    for st, a in zip(states, acts, strict=True):
+        q = [float(w @ ds.dev_mu[e, st, b]) for b in range(A)]
+        z = sum(math.exp(beta * (qb - max(q))) for qb in q)
+        ll += math.log((1 - lapse) * math.exp(beta * (q[a] - max(q))) / z + lapse / A)
+    return ll
+
+
+def test_confused_answers_are_scored_by_the_belief_of_their_time(skate):
+    """With confusion c, an attempt is the particle's own plan with chance 1 - c and a plan
+    under weights drawn from the belief at the time with chance c: the update must be
+    that mixture, each particle at its own rationality."""
+    ds = skate.ds
+    d = int(np.flatnonzero(ds.length >= 4)[0])
+    e = int(ds.env[d])
+    moves = _random_walk(skate, d, np.random.default_rng(5), 9)
+    states, s = [], int(ds.start[d])
+    for name in moves:
+        states.append(s)
+        s = int(ds.batch.next_state[e, s, ds.batch.actions.index(name)])
+    acts = [ds.batch.actions.index(m) for m in moves]
+    w = np.array([[-0.2, -0.5, -0.84], [-0.9, -0.1, -0.42], [-0.5, -0.6, -0.62]])
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    belief = NoisyBelief(load("skateboard").prior, 3, particles=w, lapse=0.03, resample=False,
+                         rationality=(7.0, 40.0), disengaged=(0.1, 0.3), confused=(0.0, 0.6))
+    belief.idx.update(beta=np.array([0, 1, 1]), disengaged=np.array([1, 0, 0]),
+                      confused=np.array([1, 1, 0]))
+    belief.log_weights = np.log(np.array([0.5, 0.3, 0.2]))
+    prior_w = np.array([0.5, 0.3, 0.2])
+    belief.observe_steps(answer_steps(ds, e, states, acts))
+    A = ds.batch.A
+    want = []
+    for p, (beta, lam, c) in enumerate([(7.0, 0.3, 0.6), (40.0, 0.1, 0.6), (40.0, 0.1, 0.0)]):
+        own = math.exp(_step_loglik(ds, e, w[p], beta, 0.03, states, acts))
+        mix = sum(prior_w[q] * math.exp(_step_loglik(ds, e, w[q], beta, 0.03, states, acts))
+                  for q in range(3))
+        lik = (1 - lam) * ((1 - c) * own + c * mix) + lam * A ** -len(acts)
+        want.append(prior_w[p] * lik)
+    want = np.array(want) / sum(want)
+    np.testing.assert_allclose(belief.weights, want, rtol=1e-9)
+
+
+def test_confused_prediction_is_a_mixture_over_the_belief(skate):
+    """P(optimal) with confusion: a confused attempt succeeds as often as the belief's
+    particles would at the particle's rationality (path enumeration, as above)."""
+    ds = skate.ds
+    d = int(np.flatnonzero(ds.length == 3)[0])
+    e = int(ds.env[d])
+    w = np.array([[-0.15, -0.45, -0.88], [-0.7, -0.2, -0.68]])
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    belief = NoisyBelief(load("skateboard").prior, 3, particles=w, lapse=0.02,
+                         rationality=(10.0, 30.0), disengaged=(0.1,), confused=(0.0, 0.4))
+    belief.idx.update(beta=np.array([1, 0]), confused=np.array([1, 1]))
+    belief.log_weights = np.log(np.array([0.7, 0.3]))
+    sat = np.array([[True], [False]])
+    data, starts = path_steps(ds, [d])
+    got = belief.predicted(sat, data, starts)[0]
+    A = ds.batch.A
+
+    def engaged(q_w, beta, inside):
+        pol = 1.0
+        for st in ds.states[d, :3].tolist():
+            q = ds.Q[e, st]
+            opt = q >= q.max() - 1e-9
+            logits = np.array([beta * float(q_w @ ds.dev_mu[e, st, b]) for b in range(A)])
+            soft = np.exp(logits - logits.max()) / np.exp(logits - logits.max()).sum()
+            pol *= 0.98 * soft[opt].sum() + 0.02 * opt.sum() / A
+        return pol * (1.0 if inside else 0.02)
+
+    rand = np.prod([ (ds.Q[e, st] >= ds.Q[e, st].max() - 1e-9).sum() / A
+                     for st in ds.states[d, :3].tolist()])
+    want = 0.0
+    for p, beta in enumerate([30.0, 10.0]):
+        mix = sum(wq * engaged(w[q], beta, sat[q, 0]) for q, wq in enumerate([0.7, 0.3]))
+        own = engaged(w[p], beta, sat[p, 0])
+        want += [0.7, 0.3][p] * (0.9 * (0.6 * own + 0.4 * mix) + 0.1 * rand)
+    assert got == pytest.approx(want, rel=1e-9)
+
+
+def test_confusion_draws_from_its_own_stream_and_off_stores_nothing(skate):
+    """The confusion grid's indices come from a random stream of their own, so the other
+    grids' draws do not depend on it; with the grid (0.0,) no answer stores a confusion
+    term (bench/closed_loop_identity.py checks whole sessions against the code without
+    it, bit for bit)."""
+    from cfteach.simulate.learners import Learners
+
+    prior = load("delivery").prior
+    a = NoisyBelief(prior, 3, n_particles=100, seed=2, confused=(0.0,))
+    b = NoisyBelief(prior, 3, n_particles=100, seed=2, confused=(0.0, 0.3, 0.6))
+    for k in ("beta", "uptake", "disengaged"):
+        assert np.array_equal(a.idx[k], b.idx[k]) and np.array_equal(a.ref_idx[k], b.ref_idx[k])
+    assert np.array_equal(a.particles, b.particles)
+    assert sorted(np.bincount(b.idx["confused"]).tolist()) == [33, 33, 34]
+
+    pool = build_pool("delivery", human_models=8, held_out=[])
+    runs = []
+    for confused in ((0.0,), (0.0, 0.5)):
+        t = ClosedLoopTeacher(pool, TeacherSettings(n_particles=200, max_items=12,
+                                                    confused=confused), seed=4)
+        learner = Learners(pool.domain, "noisy", 1, rng=4)
+        while (item := t.next()) is not None:
+            if item.kind != "test":
+                learner.observe(item.to_json(pool))
+                t.observe({})
+            else:
+                ans = learner.answer([item.to_json(pool)], moves=True)
+                t.observe({"actions": ans["actions"][0][0]})
+        runs.append(t)
+    off, on = runs
+    assert "confused_ll" not in str([sorted(h) for h in off.belief.history])
+    assert any("confused_ll" in h for h in on.belief.history)
+    # The first items come before any answer, so they match; the beliefs then part.
+    assert off.items[0].demo == on.items[0].demo
+    assert not np.array_equal(off.belief.log_weights, on.belief.log_weights)
 
 
 # -- a wrong noisy answer lowers the predicted success ------------------------------------

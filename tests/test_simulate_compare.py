@@ -6,7 +6,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from cfteach.simulate.compare import bootstrap_ratio, calibration_table, ratio_table
+from cfteach.simulate.compare import (
+    bootstrap_ratio,
+    calibration_table,
+    geometric_mean,
+    ratio_table,
+)
 from cfteach.simulate.summary import answer_regret, regret_table
 
 
@@ -51,6 +56,14 @@ def test_ratio_table_and_geometric_mean_by_hand():
     assert cell["closed_loop/proposed_equal_items"]["ratio"] == pytest.approx(0.2 / 0.2)
     assert "closed_loop/proposed_equal_budget" not in cell
     assert table["geometric_mean"]["closed_loop/proposed"] == pytest.approx(0.5)
+
+
+def test_geometric_mean_with_zero_and_infinite_ratios():
+    assert geometric_mean([0.5, 2.0, 4.0]) == pytest.approx(4.0 ** (1 / 3))
+    assert geometric_mean([0.0, 2.0, 4.0]) == 0.0           # a factor 0: the product is 0
+    assert geometric_mean([np.inf, 2.0]) == np.inf
+    assert geometric_mean([0.0, np.inf]) is None             # 0 x inf has no value
+    assert geometric_mean([]) is None and geometric_mean([np.nan, 1.0]) is None
 
 
 def test_calibration_table_by_hand():

@@ -123,7 +123,7 @@ def _teacher_settings(pairs: list[str] | None) -> dict:
             if key == "zpd_band":
                 lo, hi = value.split("/")
                 out[key] = (float(lo), float(hi))
-            elif key in ("rationality", "uptake", "disengaged"):  # grids: a/b/c
+            elif key in ("rationality", "uptake", "disengaged", "confused"):  # grids: a/b/c
                 out[key] = tuple(float(x) for x in value.split("/"))
             elif key == "model":
                 out[key] = value

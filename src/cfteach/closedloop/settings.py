@@ -9,10 +9,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from cfteach.closedloop.noisy_belief import DISENGAGED, RATIONALITY, UPTAKE
+from cfteach.closedloop.noisy_belief import CONFUSED, DISENGAGED, LAPSE, RATIONALITY, UPTAKE
 
 MODELS = ("noisy", "fixed")
-_GRIDS = ("zpd_band", "rationality", "uptake", "disengaged")
+_GRIDS = ("zpd_band", "rationality", "uptake", "disengaged", "confused")
 
 
 @dataclass(frozen=True)
@@ -33,7 +33,9 @@ class TeacherSettings:
     rationality: tuple[float, ...] = RATIONALITY  # model "noisy": grid of beta
     uptake: tuple[float, ...] = UPTAKE            # model "noisy": grid of demo uptake
     disengaged: tuple[float, ...] = DISENGAGED    # model "noisy": grid of P(random answer)
-    lapse: float = 0.01           # model "noisy": chance of a random move at any step
+    confused: tuple[float, ...] = CONFUSED        # model "noisy": grid of P(attempt planned
+    #                                               under weights drawn from the belief then)
+    lapse: float = LAPSE          # model "noisy": chance of a random move at any step
     test_every: int = 3           # after the first test, a test at least every this many items
     max_repeat: int = 2           # the same demonstration at most this many times in a row
     n_probes: int = 48            # the teacher's own probe tests (never the post-tests)
@@ -65,6 +67,8 @@ class TeacherSettings:
              "one or more numbers in (0, 1)"),
             ("disengaged", len(self.disengaged) >= 1
              and all(0 < x < 1 for x in self.disengaged), "one or more numbers in (0, 1)"),
+            ("confused", len(self.confused) >= 1
+             and all(0 <= x < 1 for x in self.confused), "one or more numbers in [0, 1)"),
             ("lapse", 0 <= self.lapse < 1, "in [0, 1)"),
             ("test_every", isinstance(self.test_every, int) and self.test_every >= 1,
              "an integer >= 1"),

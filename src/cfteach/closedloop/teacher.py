@@ -65,7 +65,8 @@ class ClosedLoopTeacher:
         if st.model == "noisy":
             self.belief = NoisyBelief(prior, ds.F, n_particles=st.n_particles, seed=self.seed,
                                       rationality=st.rationality, uptake=st.uptake,
-                                      disengaged=st.disengaged, lapse=st.lapse)
+                                      disengaged=st.disengaged, confused=st.confused,
+                                      lapse=st.lapse)
         else:
             self.belief = ParticleBelief(prior, ds.F, n_particles=st.n_particles,
                                          seed=self.seed, p_learn=st.p_learn,

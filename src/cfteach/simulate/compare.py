@@ -61,13 +61,24 @@ def ratio_table(answers: pd.DataFrame, *, seed: int = 0) -> dict[str, Any]:
             cells.setdefault(str(model), {}).setdefault(str(dom), {})[key] = {
                 "ratio": r, "ci_low": lo, "ci_high": hi}
             logs.setdefault(key, []).append(r)
-    geo = {}
-    for key, rs in logs.items():
-        rs_arr = np.asarray(rs)
-        geo[key] = float(np.exp(np.mean(np.log(rs_arr)))) if np.all(
-            (rs_arr > 0) & np.isfinite(rs_arr)) else None
+    geo = {key: geometric_mean(rs) for key, rs in logs.items()}
     return {"cells": cells, "geometric_mean": geo,
             "n_cells": {k: len(v) for k, v in logs.items()}}
+
+
+def geometric_mean(ratios: list[float]) -> float | None:
+    """The geometric mean of non-negative ratios: 0 when one of them is 0 (closed loop
+    without regret in a cell), infinite when one is infinite (a control without any), and
+    None when both happen (0 x inf has no value)."""
+    r = np.asarray(ratios, float)
+    if not len(r) or np.any(r < 0) or np.any(np.isnan(r)):
+        return None
+    zero, inf = bool(np.any(r == 0)), bool(np.any(np.isinf(r)))
+    if zero and inf:
+        return None
+    if zero or inf:
+        return 0.0 if zero else float("inf")
+    return float(np.exp(np.mean(np.log(r))))
 
 
 def calibration_table(answers: pd.DataFrame, beliefs: pd.DataFrame

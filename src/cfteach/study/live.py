@@ -40,6 +40,9 @@ def teacher_seed(session_seed: int, domain: str) -> int:
 def settings_of(cell: dict) -> TeacherSettings:
     s = dict(cell["settings"])
     s["zpd_band"] = tuple(s["zpd_band"])
+    # A study file written before the confusion term runs its sessions without it, so
+    # their replays (and so their next items) stay those they were served.
+    s.setdefault("confused", (0.0,))
     return TeacherSettings(**s)
 
 
