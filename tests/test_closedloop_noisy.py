@@ -209,7 +209,7 @@ def test_confusion_draws_from_its_own_stream_and_off_stores_nothing(skate):
                 t.observe({"actions": ans["actions"][0][0]})
         runs.append(t)
     off, on = runs
-    assert "confused_ll" not in str([sorted(h) for h in off.belief.history])
+    assert not any("confused_ll" in h for h in off.belief.history)
     assert any("confused_ll" in h for h in on.belief.history)
     # The first items come before any answer, so they match; the beliefs then part.
     assert off.items[0].demo == on.items[0].demo

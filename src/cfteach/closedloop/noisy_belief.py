@@ -217,11 +217,10 @@ class NoisyBelief(ParticleBelief):
                          sat: np.ndarray) -> np.ndarray:
         """``[B, T]``: the belief's chance of an optimal engaged attempt on each test, for
         every rationality value of the grid (what a confused attempt achieves)."""
-        out = []
-        for b in self.grids["beta"]:
-            pol, _ = self._follow(x, np.full(len(x), b), optimal, test_starts)
-            out.append(self.weights @ (pol * np.where(sat, 1.0, self.lapse)))
-        return np.array(out)
+        inside = np.where(sat, 1.0, self.lapse)
+        return np.array([self.weights @ (self._follow(x, np.full(len(x), b), optimal,
+                                                      test_starts)[0] * inside)
+                         for b in self.grids["beta"]])
 
     def p_optimal_paths(self, region_sat: np.ndarray, data: StepData,
                         test_starts: np.ndarray) -> np.ndarray:
