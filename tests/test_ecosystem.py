@@ -35,7 +35,9 @@ def _bot_study(folder: Path, seed: int = 0) -> tuple[Path, Path]:
     from cfteach.study.bot import run_participant
     from cfteach.study.build import preview_sources
 
-    init_study(folder / "study", preview_sources(seed=seed), completion_code="C1")
+    # 10 ms a demonstration step: the bots watch every demonstration in real time
+    init_study(folder / "study", preview_sources(seed=seed), completion_code="C1",
+               demo_step_ms=10)
     db = f"sqlite:///{folder / 'study.db'}"
     study = load_study(folder / "study")
     with TestClient(create_app(folder / "study", db, researcher_token="t")) as client:
