@@ -179,6 +179,21 @@ def test_confused_prediction_is_a_mixture_over_the_belief(skate):
     assert got == pytest.approx(want, rel=1e-9)
 
 
+@pytest.mark.parametrize(("confused", "ok"), [((0.0,), True), ((0.0, 0.99), True),
+                                              ((-0.1,), False), ((1.0,), False),
+                                              ((), False), ((float("nan"),), False)])
+def test_the_confusion_grid_takes_numbers_in_zero_to_one(confused, ok):
+    """0 is allowed (the term off) and 1 is not (no attempt would be the particle's own)."""
+    prior = load("delivery").prior
+    if ok:
+        belief = NoisyBelief(prior, 3, n_particles=10, confused=confused)
+        assert belief.grids["confused"].tolist() == list(confused)
+    else:
+        with pytest.raises(ValueError, match=r"confused: expected one or more numbers in "
+                                             r"\[0\.0, 1\.0\)"):
+            NoisyBelief(prior, 3, n_particles=10, confused=confused)
+
+
 def test_confusion_draws_from_its_own_stream_and_off_stores_nothing(skate):
     """The confusion grid's indices come from a random stream of their own, so the other
     grids' draws do not depend on it; with the grid (0.0,) no answer stores a confusion

@@ -114,11 +114,13 @@ class StepData:
                 "alt": self.alt, "alt_action": self.alt_action}
 
 
-def _as_grid(values: Any, name: str, low: float, high: float) -> np.ndarray:
+def _as_grid(values: Any, name: str, low: float, high: float, *,
+             low_included: bool = False) -> np.ndarray:
     arr = np.asarray(values, dtype=np.float64).ravel()
-    if not len(arr) or not np.all(np.isfinite(arr)) or np.any(arr <= low) or np.any(arr >= high):
-        raise ValueError(f"{name}: expected one or more numbers in ({low}, {high}), "
-                         f"got {values!r}")
+    below = arr < low if low_included else arr <= low
+    if not len(arr) or not np.all(np.isfinite(arr)) or np.any(below) or np.any(arr >= high):
+        raise ValueError(f"{name}: expected one or more numbers in "
+                         f"{'[' if low_included else '('}{low}, {high}), got {values!r}")
     return arr
 
 
@@ -149,11 +151,7 @@ class NoisyBelief(ParticleBelief):
                         for k, g in self.grids.items()}
         # Confusion comes last and from a stream of its own, so that with the grid (0.0,)
         # every other draw (and so every result) is the one of the model without it.
-        conf = np.asarray(confused, dtype=np.float64).ravel()
-        if not len(conf) or not np.all(np.isfinite(conf)) or np.any(conf < 0) \
-                or np.any(conf >= 1):
-            raise ValueError(f"confused: expected one or more numbers in [0, 1), "
-                             f"got {confused!r}")
+        conf = _as_grid(confused, "confused", 0.0, 1.0, low_included=True)
         self.grids["confused"] = conf
         rng_c = np.random.default_rng([self.seed, 6])
         self.idx["confused"] = self._spread(len(self.particles), len(conf), rng_c)
