@@ -17,7 +17,7 @@ rows, so every question the teacher asks of its 1,000 particles is one small mat
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -106,6 +106,23 @@ class LessonPool:
     @property
     def F(self) -> int:  # noqa: N802 - the feature count, as elsewhere
         return self.ds.F
+
+    def with_models(self, W: np.ndarray) -> LessonPool:
+        """This pool with more human models ``W [M, F]`` (e.g. drawn from one learner's
+        current belief): their counterfactual rows join every demo's lesson and test rows,
+        so lessons can target the plans of learners like this one, and tests compare
+        against those plans too. The held-out tests, the backbone and the cache (the
+        probes were chosen on the first pool and stay) carry over unchanged."""
+        W = np.asarray(W, dtype=float).reshape(-1, self.F)
+        if not len(W):
+            return self
+        cf, _, _ = counterfactual_rows(self.ds, W)
+        lesson_rows, test_rows = self.lesson_rows.union(cf), self.test_rows.union(cf)
+        every = np.arange(self.ds.D)
+        return replace(self, human_models=np.vstack([self.human_models, W]),
+                       lesson_rows=lesson_rows, test_rows=test_rows,
+                       lessons=RowIndex.build(lesson_rows, every),
+                       tests=RowIndex.build(test_rows, every), cache=dict(self.cache))
 
     def test_alternatives(self, d: int) -> np.ndarray:
         """Feature counts of the other answers test d's constraints compare against:

@@ -40,6 +40,8 @@ class TeacherSettings:
     max_repeat: int = 2           # the same demonstration at most this many times in a row
     n_probes: int = 48            # the teacher's own probe tests (never the post-tests)
     min_passes: int = 2           # stop only after this many passed tests in a row
+    belief_models: int = 0        # human models drawn from the belief after each test answer
+    #                               (their counterfactual rows join the pool's; 0: none)
 
     def __post_init__(self) -> None:
         for name in _GRIDS:  # lists (from JSON) become tuples
@@ -78,6 +80,9 @@ class TeacherSettings:
              "an integer >= 0"),
             ("n_probes", isinstance(self.n_probes, int) and self.n_probes >= 1,
              "an integer >= 1"),
+            ("belief_models", isinstance(self.belief_models, int)
+             and not isinstance(self.belief_models, bool) and 0 <= self.belief_models <= 64,
+             "an integer in 0..64"),
         ]
         for name, ok, want in checks:
             if not ok:

@@ -80,8 +80,7 @@ class ClosedLoopTeacher:
         self._held = np.array(sorted(self.pool.held_out), dtype=np.int64)
         self._probes = probes.probe_demos(self.pool, st.n_probes)
         self._no_lesson = probes.lesson_blocked(self.pool, st.n_probes)
-        self._usable_lessons = np.array([any(int(d) not in self._no_lesson for d in m)
-                                         for m in self.pool.lessons.members], dtype=bool)
+        self._usable_lessons = self._lessons_allowed()
         self._backbone = self._backbone_demos()
         self._progress = [0.0]
         self._prediction_memo: tuple[Any, dict[str, float | None]] = (None, {})
@@ -118,6 +117,7 @@ class ClosedLoopTeacher:
             self._observe_answer(item.demo, outcome)
             self.outcomes[item.index] = outcome
             self._used_tests.add(item.demo)
+            self._draw_models()
         elif item.kind == "feedback":
             rows = [self.pool.lesson_rows.of(item.demo)]
             assert item.about is not None  # feedback is always about a test
@@ -132,6 +132,27 @@ class ClosedLoopTeacher:
         self.responses.append(response)
         self._pending = None
         self._progress.append(self._next_progress())
+
+    def _draw_models(self) -> None:
+        """After a test answer, `belief_models` weighted particles join this session's pool
+        as human models, so lessons and tests reach the plans of learners like this one
+        (docs/closed-loop.md, "Human models from the belief"). Seeded by the item count."""
+        k = self.settings.belief_models
+        w = self.belief.weights
+        live = np.flatnonzero(w > 0)
+        if k <= 0 or not len(live):
+            return
+        rng = np.random.default_rng([self.seed, 5, len(self.items)])
+        pick = rng.choice(live, size=min(k, len(live)), replace=False,
+                          p=w[live] / w[live].sum())
+        probes.probe_paths(self.pool, self.settings.n_probes)  # cached before the pool grows
+        self.pool = self.pool.with_models(self.belief.particles[np.sort(pick)])
+        self._usable_lessons = self._lessons_allowed()
+
+    def _lessons_allowed(self) -> np.ndarray:
+        """bool per lesson row set: a member is not a post-test's or a probe's start."""
+        return np.array([any(int(d) not in self._no_lesson for d in m)
+                         for m in self.pool.lessons.members], dtype=bool)
 
     def _observe_answer(self, d: int, outcome: Outcome) -> None:
         ds = self.pool.ds
