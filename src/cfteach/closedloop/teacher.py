@@ -137,10 +137,9 @@ class ClosedLoopTeacher:
         """After a test answer, `belief_models` weighted particles join this session's pool
         as human models, so lessons and tests reach the plans of learners like this one
         (docs/closed-loop.md, "Human models from the belief"). Seeded by the item count."""
-        k = self.settings.belief_models
-        w = self.belief.weights
-        live = np.flatnonzero(w > 0)
-        if k <= 0 or not len(live):
+        k, w = self.settings.belief_models, self.belief.weights
+        live = np.flatnonzero(w > 0) if k > 0 else ()
+        if not len(live):
             return
         rng = np.random.default_rng([self.seed, 5, len(self.items)])
         pick = rng.choice(live, size=min(k, len(live)), replace=False,
