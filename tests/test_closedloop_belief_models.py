@@ -4,6 +4,9 @@ stays as it was with the setting off."""
 
 from __future__ import annotations
 
+import csv
+import json
+
 import numpy as np
 import pytest
 
@@ -98,3 +101,39 @@ def test_no_models_drawn_means_the_session_of_the_default_teacher(pool) -> None:
 def test_belief_models_must_be_a_small_count(bad) -> None:
     with pytest.raises(ValueError, match="closed-loop setting belief_models must be"):
         TeacherSettings(belief_models=bad)
+
+
+def test_a_live_study_draws_models_and_its_export_replays(tmp_path) -> None:
+    """Through the study server (teacher in its decision workers): a bot session with
+    `belief_models` completes, and its exported answers replay offline to the same items."""
+    from fastapi.testclient import TestClient
+
+    from cfteach.study import create_app, export_csv, load_study
+    from cfteach.study.bot import run_participant
+    from cfteach.study.build import init_study, preview_sources
+    from cfteach.study.live import pool_from_cell, settings_of
+
+    folder = tmp_path / "study"
+    init_study(folder, preview_sources(["skateboard"]), demo_step_ms=10,
+               conditions=["closed_loop"],
+               teacher={"n_particles": 200, "max_items": 10, "belief_models": 2})
+    study = load_study(folder)
+    cell = study["closed_loop"]["skateboard"]
+    assert settings_of(cell).belief_models == 2
+    db = f"sqlite:///{tmp_path / 'cl.db'}"
+    with TestClient(create_app(folder, db, seed=3)) as client:
+        done = run_participant(client, {"prolific_pid": "bm0yyyyyyyyy", "study_id": "S",
+                                        "session_id": "B0"}, study=study)
+        assert done["state"]["step"]["kind"] == "complete"
+    export_csv(db, tmp_path / "out")
+    with open(tmp_path / "out" / "closed_loop_items.csv", newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert any(r["kind"] == "test" for r in rows)
+    pool = pool_from_cell(cell)
+    responses = [{"actions": r["actions"].split()} if r["kind"] == "test" else {}
+                 for r in rows]
+    t = ClosedLoopTeacher.replay(pool, responses, settings=settings_of(cell),
+                                 seed=int(rows[0]["teacher_seed"]))
+    assert [(it.kind, it.to_json(pool)["start_state"]) for it in t.items] == [
+        (r["kind"], json.loads(r["start_state"])) for r in rows]
+    assert len(t.pool.human_models) > len(pool.human_models)
