@@ -89,12 +89,15 @@ def test_a_session_draws_models_from_its_belief_after_each_test_and_replays(pool
     assert np.array_equal(again.pool.human_models, t.pool.human_models)
 
 
-def test_no_models_drawn_means_the_session_of_the_default_teacher(pool) -> None:
-    base = _session(pool, TeacherSettings(n_particles=200, max_items=10))
-    off = _session(pool, TeacherSettings(belief_models=0, n_particles=200, max_items=10))
-    assert [it.demo for it in off.items] == [it.demo for it in base.items]
-    assert np.array_equal(off.belief.particles, base.belief.particles)
+def test_models_are_drawn_only_after_a_test_answer_and_not_at_all_when_off(pool) -> None:
+    """Up to the first test answer a session drawing models is the session of the default
+    teacher (which draws none and keeps the shared pool); the pools part there."""
+    off = _session(pool, TeacherSettings(n_particles=200, max_items=10))
+    on = _session(pool, TeacherSettings(belief_models=3, n_particles=200, max_items=10))
+    first = next(k for k, it in enumerate(off.items) if it.kind == "test")
+    assert [it.demo for it in on.items[:first + 1]] == [it.demo for it in off.items[:first + 1]]
     assert off.pool is pool
+    assert on.pool is not pool and on.pool.lessons.n_sets >= pool.lessons.n_sets
 
 
 @pytest.mark.parametrize("bad", [-1, 65, 1.5, True])
