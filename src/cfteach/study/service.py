@@ -168,20 +168,29 @@ class StudyService(PageViews, ClosedLoopSteps):
         """The page to show. Only what is durable is shown (`durable_barrier`). A
         closed-loop page whose next item is not decided yet submits the decision (once)
         and waits for it up to `wait` s (then answers ``preparing: true``)."""
+        return self._settle(token, *self.read_state(token), wait)
+
+    def _settle(self, token: str | None, view: dict, job: dict | None, wait: float) -> dict:
+        """`view` (with its pending decision `job`), or, once the decision is recorded
+        within `wait` s, the page read again with the item."""
         wait = min(max(0.0, wait), MAX_WAIT_S)
         for _ in range(3):
-            view, job = self.read_state(token)
             if job is None or not self._cl_ensure(job, wait):
                 return view
             wait = 0.0  # recorded: read the page once more, with what was recorded
+            view, job = self.read_state(token)
         return view
 
     async def state_async(self, token: str | None, wait: float = 0.0) -> dict:
         """`state` for the event loop: the reads and writes run in the thread pool, and
         the wait for a decision holds no thread at all."""
+        view, job = await run_in_threadpool(self.read_state, token)
+        return await self._settle_async(token, view, job, wait)
+
+    async def _settle_async(self, token: str | None, view: dict, job: dict | None,
+                            wait: float) -> dict:
         wait = min(max(0.0, wait), MAX_WAIT_S)
         for _ in range(3):
-            view, job = await run_in_threadpool(self.read_state, token)
             if job is None:
                 return view
             fut = self.decider.submit(self._studies[job["version"]], job["pk"],
@@ -194,6 +203,7 @@ class StudyService(PageViews, ClosedLoopSteps):
             if not await run_in_threadpool(self._cl_record, job, result):
                 return view
             wait = 0.0
+            view, job = await run_in_threadpool(self.read_state, token)
         return view
 
     def read_state(self, token: str | None) -> tuple[dict, dict | None]:
@@ -201,30 +211,41 @@ class StudyService(PageViews, ClosedLoopSteps):
         durable_barrier(self.engine)
         with self.ReadSession() as db, db.begin():
             row = self._session(db, token)
-            view = self._view(db, row)
-            job = None
-            if view["step"].get("preparing"):
-                job = self._cl_job(db, row, self.steps(row)[row.step_index])
+            return self._page(db, row)
+
+    def _page(self, db: DBSession, row: Session) -> tuple[dict, dict | None]:
+        view = self._view(db, row)
+        job = None
+        if view["step"].get("preparing"):
+            job = self._cl_job(db, row, self.steps(row)[row.step_index])
         return view, job
 
     # -- events ---------------------------------------------------------------------------
 
     def post_event(self, token: str | None, req: schemas.EventRequest) -> dict:
         """Store one event exactly once and apply its effect on the step machine."""
-        result = self.store_event(token, req)
-        return {"ok": True, **result, "state": self.state(token, wait=self.event_wait_s)}
+        result, view, job = self.store_event(token, req)
+        return {"ok": True, **result,
+                "state": self._settle(token, view, job, self.event_wait_s)}
 
     async def post_event_async(self, token: str | None, req: schemas.EventRequest) -> dict:
-        result = await run_in_threadpool(self.store_event, token, req)
-        state = await self.state_async(token, wait=self.event_wait_s)
+        result, view, job = await run_in_threadpool(self.store_event, token, req)
+        state = await self._settle_async(token, view, job, self.event_wait_s)
         return {"ok": True, **result, "state": state}
 
-    def store_event(self, token: str | None, req: schemas.EventRequest) -> dict:
-        """Store the event (durably) and return what its acknowledgement adds."""
+    def store_event(self, token: str | None,
+                    req: schemas.EventRequest) -> tuple[dict, dict, dict | None]:
+        """Store the event (durably); return what its acknowledgement adds, and the page it
+        leads to (with the decision that page waits for, if any).
+
+        The page is read in the event's own transaction, just before its commit: it is
+        exactly what the commit makes durable, and the request needs no second
+        transaction (and no second session lookup) to read it (docs/study.md, "Load")."""
         try:
             with self.Session() as db, db.begin():
-                _row, result = self._apply(db, token, req)
+                row, result = self._apply(db, token, req)
                 db.flush()
+                view, job = self._page(db, row)
         except IntegrityError as e:
             durable_barrier(self.engine)  # the stored copy is durable before we say so
             raise ApiError(409, "duplicate_event",
@@ -233,10 +254,10 @@ class StudyService(PageViews, ClosedLoopSteps):
             if e.code == "duplicate_event":
                 durable_barrier(self.engine)
             raise
-        # Only now, after the (durable) commit, is the event acknowledged. The page it
-        # leads to is read after it, outside the write lock; a closed-loop answer waits a
-        # moment for the next item (usually decided ahead) before answering "preparing".
-        return result
+        # Only now, after the (durable) commit, is the event acknowledged; a closed-loop
+        # answer waits a moment for the next item (usually decided ahead) before
+        # answering "preparing".
+        return result, view, job
 
     def _apply(self, db: DBSession, token: str | None,
                req: schemas.EventRequest) -> tuple[Session, dict]:
