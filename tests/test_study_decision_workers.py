@@ -58,3 +58,44 @@ def test_workers_decide_at_a_lower_os_priority() -> None:
         d.close()
     server = os.nice(0)
     assert worker > server or server == 19
+
+
+def test_workers_keep_their_start_up_objects_out_of_garbage_collection() -> None:
+    """A full collection in a worker would walk every lesson pool built at its start,
+    stopping the decision it interrupts (docs/study.md, "Load"): start-up objects are frozen."""
+    import gc
+
+    from cfteach.study.decisions import Decider
+    from cfteach.study.live import LiveTeaching
+
+    d = Decider(LiveTeaching(), [], 1)
+    try:
+        frozen = d._executors[0].submit(gc.get_freeze_count).result(timeout=120)
+    finally:
+        d.close()
+    assert frozen > 1000
+
+
+def test_settle_heap_freezes_what_exists_and_new_objects_stay_collectable() -> None:
+    import gc
+    import weakref
+
+    from cfteach.study.livesrv import settle_heap
+
+    assert gc.get_freeze_count() == 0
+    try:
+        settle_heap()
+        frozen = gc.get_freeze_count()
+        assert frozen > 1000
+
+        class Node:
+            pass
+
+        a, b = Node(), Node()
+        a.other, b.other = b, a  # a cycle made after the freeze is still collected
+        gone = weakref.ref(a)
+        del a, b
+        gc.collect()
+        assert gone() is None
+    finally:
+        gc.unfreeze()

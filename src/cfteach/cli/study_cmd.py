@@ -273,7 +273,7 @@ def serve(
     import uvicorn
 
     from cfteach.study.config import StudyError
-    from cfteach.study.livesrv import server_config
+    from cfteach.study.livesrv import server_config, settle_heap
     from cfteach.study.server import create_app
 
     token = researcher_token or secrets.token_urlsafe(16)
@@ -289,6 +289,7 @@ def serve(
     except StudyError as e:
         typer.echo(f"Error: {e}", err=True)
         raise typer.Exit(1) from None
+    settle_heap()
     typer.echo(f"researcher page: http://{host}:{port}/researcher?token={token}", err=True)
     config = server_config(app, host=host, port=port, forwarded_allow_ips=forwarded_allow_ips,
                            log_level=os.environ.get("CFTEACH_LOG", "info"))

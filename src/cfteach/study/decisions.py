@@ -27,6 +27,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from .live import LiveTeaching
+from .livesrv import settle_heap
 
 #: Futures kept for lookup (the in-flight and recently finished decisions).
 MAX_FUTURES = 4096
@@ -67,6 +68,7 @@ def _worker_init(studies: list[dict]) -> None:
     _WORKER_LIVE = LiveTeaching()
     for s in studies:
         _WORKER_LIVE.warm(s)
+    settle_heap()  # a full collection would otherwise walk the pools during decisions
 
 
 def _ready() -> bool:
