@@ -247,42 +247,17 @@ def test_concurrent_starts_share_fsyncs(toy_study, tmp_path,  # noqa: ANN001
     """New sessions take turns on the database's lock only, which their commit releases
     before its fsync: starts arriving together share fsyncs instead of queueing behind
     each other's (200 arrivals in 2 s waited up to 3.5 s: docs/study.md, "Load")."""
-    import os
-
-    from cfteach.study import sqlite_writes
-
     svc = _service(toy_study, f"sqlite:///{tmp_path / 'starts.db'}")
     with svc.engine.connect() as conn:
         sync = conn.connection.dbapi_connection.wal_sync
-    base, fsyncs = sync.committed, sync.fsyncs
-    real_fsync = os.fsync
-    first = threading.Event()
-
-    def fsync(fd: int) -> None:
-        # The first start's fsync lasts until the 7 others have committed (at most 3 s:
-        # with a process lock held through each commit they could not).
-        if not first.is_set():
-            first.set()
-            for _ in range(300):
-                if sync.committed >= base + 8:
-                    break
-                threading.Event().wait(0.01)
-        real_fsync(fd)
-
-    monkeypatch.setattr(sqlite_writes.os, "fsync", fsync)
 
     def start(k: int) -> None:
         svc.start(SessionRequest(prolific_pid=f"F{k:04d}", study_id="S"))
 
-    threads = [threading.Thread(target=start, args=(k,)) for k in range(8)]
-    threads[0].start()
-    first.wait(10)
-    for t in threads[1:]:
-        t.start()
-    for t in threads:
-        t.join()
-    assert sync.committed == sync.durable == base + 8
-    assert sync.fsyncs - fsyncs == 2  # the first start's, then one for the other seven
+    # the first start's fsync, then one for the other seven; with a process lock held
+    # through each commit they could not commit meanwhile (8 fsyncs, after 3 s)
+    assert test_study_support.fsyncs_sharing_the_first(monkeypatch, sync, start,
+                                                       seconds=3) == 2
     with svc.Session() as db:
         assert sum(cell_counts(db, svc.study, utcnow()).values()) == 8
     svc.engine.dispose()

@@ -12,6 +12,7 @@ from sqlalchemy import event, text
 
 from cfteach.study import sqlite_writes
 from cfteach.study.db import make_engine
+from test_study_support import fsyncs_sharing_the_first
 
 
 def _engine_without_busy_wait(path: Path):  # noqa: ANN202
@@ -126,36 +127,13 @@ def test_commits_waiting_together_share_one_fsync(tmp_path: Path,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     engine = _engine_without_busy_wait(tmp_path / "g.db")
     sync = _wal_sync(engine)
-    base = sync.committed
-    real_fsync = os.fsync
-    first = threading.Event()
-
-    def fsync(fd: int) -> None:
-        # The first fsync lasts until the 7 other commits are waiting for durability.
-        if not first.is_set():
-            first.set()
-            for _ in range(1000):
-                if sync.committed >= base + 8:
-                    break
-                threading.Event().wait(0.01)
-        real_fsync(fd)
-
-    monkeypatch.setattr(sqlite_writes.os, "fsync", fsync)
-    fsyncs = sync.fsyncs
 
     def writer(k: int) -> None:
         with engine.begin() as conn:
             conn.execute(text("INSERT INTO t VALUES (:n)"), {"n": k})
 
-    threads = [threading.Thread(target=writer, args=(k,)) for k in range(8)]
-    threads[0].start()
-    first.wait(10)
-    for t in threads[1:]:
-        t.start()
-    for t in threads:
-        t.join()
-    assert sync.committed == sync.durable == base + 8
-    assert sync.fsyncs - fsyncs == 2  # the first commit's, then one for the other seven
+    # the first commit's fsync, then one for the other seven
+    assert fsyncs_sharing_the_first(monkeypatch, sync, writer) == 2
     engine.dispose()
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import os
+import threading
 from pathlib import Path
 
 import pytest
@@ -103,3 +104,37 @@ def researcher_progress(c: TestClient, researcher_token: str = "rt") -> dict:
     """The researcher's `/api/researcher/progress` view."""
     return c.get("/api/researcher/progress",
                  headers={"X-Researcher-Token": researcher_token}).json()
+
+
+
+def fsyncs_sharing_the_first(monkeypatch: pytest.MonkeyPatch, sync, work,  # noqa: ANN001
+                             n: int = 8, seconds: float = 10.0) -> int:
+    """Run `work(k)` for k < n in threads, each one write commit: the first alone, the
+    others once its WAL fsync (of `sync`, a `sqlite_writes.WalSync`) has started, which
+    lasts until all n have committed (at most `seconds`). Returns the fsyncs they took: 2
+    when the n - 1 others shared the one after the first's; n when each waited its turn."""
+    from cfteach.study import sqlite_writes
+
+    real_fsync = os.fsync
+    first = threading.Event()
+    base, fsyncs = sync.committed, sync.fsyncs
+
+    def fsync(fd: int) -> None:
+        if not first.is_set():
+            first.set()
+            for _ in range(int(seconds * 100)):
+                if sync.committed >= base + n:
+                    break
+                threading.Event().wait(0.01)
+        real_fsync(fd)
+
+    monkeypatch.setattr(sqlite_writes.os, "fsync", fsync)
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(n)]
+    threads[0].start()
+    first.wait(10)
+    for t in threads[1:]:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sync.committed == sync.durable == base + n
+    return sync.fsyncs - fsyncs
