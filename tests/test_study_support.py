@@ -106,7 +106,6 @@ def researcher_progress(c: TestClient, researcher_token: str = "rt") -> dict:
                  headers={"X-Researcher-Token": researcher_token}).json()
 
 
-
 def fsyncs_sharing_the_first(monkeypatch: pytest.MonkeyPatch, sync, work,  # noqa: ANN001
                              n: int = 8, seconds: float = 10.0) -> int:
     """Run `work(k)` for k < n in threads, each one write commit: the first alone, the
