@@ -1,5 +1,6 @@
 """cfteach's imports keep the shape docs/architecture.md draws: no import cycles between
-modules, no import from a lower layer to a higher one, and a map that names every package.
+modules, no import from a lower layer to a higher one, a map that names every package, and
+no module over 500 lines.
 
 The layer order is read from the diagram in docs/architecture.md (tests/import_graph.py
 says how), so the document and this test cannot drift apart. The graph is read with `ast`:
@@ -35,6 +36,18 @@ def layer_problems(root: Path, doc: Path) -> list[str]:
             f"{e.source.split('.')[1]}" for e in g.upward(g.import_edges(root), ranks)]
 
 
+#: A module longer than this mixes jobs; split it along its seams (docs/architecture.md).
+MAX_LINES = 500
+
+
+def long_modules(root: Path) -> list[str]:
+    """Every Python or JavaScript source file under `root` longer than MAX_LINES."""
+    files = sorted([*root.rglob("*.py"), *root.rglob("*.js")])
+    counts = {f: len(f.read_text(encoding="utf-8").splitlines()) for f in files}
+    return [f"{f.relative_to(root.parent)}: {n} lines (more than {MAX_LINES})"
+            for f, n in counts.items() if n > MAX_LINES]
+
+
 def map_problems(root: Path, doc: Path) -> list[str]:
     missing, unnamed = g.unmapped(root, g.layers(doc))
     return ([f"{doc.name} names {m}, which is not in {root.name}/" for m in missing]
@@ -42,6 +55,10 @@ def map_problems(root: Path, doc: Path) -> list[str]:
 
 
 # -- cfteach itself ----------------------------------------------------------------------
+
+def test_no_module_is_longer_than_500_lines() -> None:
+    assert long_modules(PACKAGE) == []
+
 
 
 def test_no_import_cycles() -> None:
@@ -133,6 +150,14 @@ CLEAN = {
     "side/__init__.py": "from pkg.mid import a\n",
     "top/__init__.py": "import pkg.side\nimport pkg.mid.a\n",
 }
+
+
+def test_synthetic_long_module_is_named(tmp_path: Path) -> None:
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "short.py").write_text("x = 1\n" * MAX_LINES)
+    (pkg / "long.js").write_text("let x = 1;\n" * (MAX_LINES + 1))
+    assert long_modules(pkg) == [f"pkg/long.js: {MAX_LINES + 1} lines (more than {MAX_LINES})"]
 
 
 def test_synthetic_clean_package_passes(tmp_path: Path) -> None:

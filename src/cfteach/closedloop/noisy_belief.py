@@ -53,75 +53,17 @@ from cfteach.closedloop.belief import (
     systematic_resample,
     tangent_proposal,
 )
+from cfteach.closedloop.noisy_params import (
+    CONFUSED,
+    DISENGAGED,
+    LAPSE,
+    RATIONALITY,
+    UPTAKE,
+    as_grid,
+)
+from cfteach.closedloop.steps import StepData, taken_actions
 
-#: Rationality grid: Q-value differences of a domain's actions are about 0.1-0.2 (weights are
-#: unit vectors), so beta = 2 is close to random and beta = 300 close to greedy.
-RATIONALITY = (5.0, 10.0, 20.0, 50.0, 100.0, 300.0)
-#: Uptake grid: the chance a shown demonstration is taken in.
-UPTAKE = (0.2, 0.4, 0.6, 0.8, 0.95)
-#: Disengagement grid: the chance a whole answer is random moves.
-DISENGAGED = (0.01, 0.05, 0.2)
-#: Confusion grid: the chance an attempt used weights drawn from the belief of its time.
-#: ``(0.0,)``, the default, turns the term off (the model before it, bit for bit);
-#: ``(0.0, 0.25, 0.5, 0.75)`` is the grid measured in docs/closed-loop.md. It is not the
-#: default yet: with it a wrong noisy answer raised the predicted success by +0.0005 on
-#: average in tiles (tests/test_closedloop_noisy.py), which the learner model must not do.
-CONFUSED = (0.0,)
-#: Chance of a random move at any step, so that no move has likelihood 0. It caps every
-#: prediction of a T-step answer near (1 - lapse)^T (0.01 caps a 15-step answer at 0.89);
-#: 0.002 goes with the confusion grid in docs/closed-loop.md.
-LAPSE = 0.01
-
-__all__ = ["CONFUSED", "DISENGAGED", "LAPSE", "RATIONALITY", "UPTAKE", "NoisyBelief",
-           "StepData"]
-
-
-class StepData:
-    """Per-step choice data of some states: for each state (a group) the rows ``Psi(s, a)``
-    of its A actions (``rows [G, A, F]``), how often each was taken (``counts [G, A]``) or
-    which are optimal (``optimal [G, A]``). ``alt [G, F]`` / ``alt_action [G]`` (-1: none)
-    give a plan the learner is known to have for one action of a group (the rest of their
-    own finished answer): ``Q_w(s, a)`` is the better of ``w . Psi(s, a)`` and ``w . alt``,
-    as both are plans that start with ``a``."""
-
-    def __init__(self, rows: np.ndarray, counts: np.ndarray | None = None,
-                 optimal: np.ndarray | None = None, alt: np.ndarray | None = None,
-                 alt_action: np.ndarray | None = None) -> None:
-        self.rows = np.asarray(rows, dtype=np.float64)
-        if self.rows.ndim != 3:
-            raise ValueError(f"StepData rows: expected shape [G, A, F], got {self.rows.shape}")
-        self.counts = None if counts is None else np.asarray(counts, dtype=np.float64)
-        self.optimal = None if optimal is None else np.asarray(optimal, dtype=bool)
-        self.alt = None if alt is None else np.asarray(alt, dtype=np.float64)
-        self.alt_action = None if alt_action is None else np.asarray(alt_action, np.int64)
-
-    def x(self, points: np.ndarray) -> np.ndarray:
-        """``Q_w(s, a)`` for every point, state and action: ``[P, G, A]``."""
-        x = np.einsum("pf,gaf->pga", points, self.rows, optimize=True)
-        if self.alt is not None and self.alt_action is not None and len(self.alt):
-            g = np.flatnonzero(self.alt_action >= 0)
-            a = self.alt_action[g]
-            x[:, g, a] = np.maximum(x[:, g, a], points @ self.alt[g].T)
-        return x
-
-    @classmethod
-    def of(cls, entry: dict[str, Any]) -> StepData:
-        return cls(entry["rows"], entry.get("counts"), entry.get("optimal"), entry.get("alt"),
-                   entry.get("alt_action"))
-
-    def to_json(self) -> dict[str, Any]:
-        return {"rows": self.rows, "counts": self.counts, "optimal": self.optimal,
-                "alt": self.alt, "alt_action": self.alt_action}
-
-
-def _as_grid(values: Any, name: str, low: float, high: float, *,
-             low_included: bool = False) -> np.ndarray:
-    arr = np.asarray(values, dtype=np.float64).ravel()
-    below = arr < low if low_included else arr <= low
-    if not len(arr) or not np.all(np.isfinite(arr)) or np.any(below) or np.any(arr >= high):
-        raise ValueError(f"{name}: expected one or more numbers in "
-                         f"{'[' if low_included else '('}{low}, {high}), got {values!r}")
-    return arr
+__all__ = ["NoisyBelief"]
 
 
 class NoisyBelief(ParticleBelief):
@@ -137,9 +79,9 @@ class NoisyBelief(ParticleBelief):
         super().__init__(prior, dim, n_particles=n_particles, seed=seed, p_learn=0.5,
                          temperature=1.0, n_reference=n_reference, particles=particles,
                          resample=resample, n_moves=n_moves)
-        self.grids = {"beta": _as_grid(rationality, "rationality", 0.0, math.inf),
-                      "uptake": _as_grid(uptake, "uptake", 0.0, 1.0),
-                      "disengaged": _as_grid(disengaged, "disengaged", 0.0, 1.0)}
+        self.grids = {"beta": as_grid(rationality, "rationality", 0.0, math.inf),
+                      "uptake": as_grid(uptake, "uptake", 0.0, 1.0),
+                      "disengaged": as_grid(disengaged, "disengaged", 0.0, 1.0)}
         lapse = float(lapse)
         if not 0.0 <= lapse < 1.0:
             raise ValueError(f"lapse must lie in [0, 1), got {lapse!r}")
@@ -151,7 +93,7 @@ class NoisyBelief(ParticleBelief):
                         for k, g in self.grids.items()}
         # Confusion comes last and from a stream of its own, so that with the grid (0.0,)
         # every other draw (and so every result) is the one of the model without it.
-        conf = _as_grid(confused, "confused", 0.0, 1.0, low_included=True)
+        conf = as_grid(confused, "confused", 0.0, 1.0, low_included=True)
         self.grids["confused"] = conf
         rng_c = np.random.default_rng([self.seed, 6])
         self.idx["confused"] = self._spread(len(self.particles), len(conf), rng_c)
@@ -256,7 +198,7 @@ class NoisyBelief(ParticleBelief):
         engaged policy, per rationality value (the confused share of an attempt)."""
         assert data.counts is not None
         x = data.x(self.particles)
-        taken = _taken(data.counts)
+        taken = taken_actions(data.counts)
         out = []
         for b in self.grids["beta"]:
             pol = self._taken_log_policy(x, np.full(len(x), b), data.counts, taken).sum(1)
@@ -364,7 +306,7 @@ class NoisyBelief(ParticleBelief):
             out["steps"] = {
                 "confused_ll": (np.array(conf) if conf and all(c is not None for c in conf)
                                 else None),
-                "counts": counts, "x": x, "taken": _taken(counts),
+                "counts": counts, "x": x, "taken": taken_actions(counts),
                 "starts": np.concatenate([[0], np.cumsum(sizes[keep])[:-1]]).astype(np.int64),
                 "keep": keep, "n_moves": np.array([e["counts"].sum() for e in steps])}
         out["outcomes"] = [(e, StepData.of(e).x(points), _sat(points, e["region"]))
@@ -525,16 +467,6 @@ def _sat(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     if not len(rows):
         return np.ones(len(points), dtype=bool)
     return np.all(points @ np.asarray(rows).T >= -TOL, axis=1)
-
-
-def _taken(counts: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The states of `counts` ``[G, A]`` where one action was taken (state, action, count)
-    and those where several were (`NoisyBelief._taken_log_policy`)."""
-    n_taken = (counts != 0).sum(axis=1)
-    one = np.flatnonzero(n_taken == 1)
-    many = np.flatnonzero(n_taken != 1)
-    act = np.argmax(counts[one] != 0, axis=1) if len(one) else np.zeros(0, np.int64)
-    return one, act, counts[one, act], many
 
 
 def _select_rows(old: np.ndarray | None, new: np.ndarray | None, take: np.ndarray

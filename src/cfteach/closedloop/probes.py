@@ -11,9 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from cfteach.closedloop.noisy_belief import StepData
 from cfteach.closedloop.pool import LessonPool
-from cfteach.closedloop.steps import path_steps
+from cfteach.closedloop.steps import StepData, path_steps
 
 #: Tests answered optimally by more (fewer) of the prior than this are trivial (impossible).
 EASY, HARD = 0.98, 0.02

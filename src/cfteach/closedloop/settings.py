@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from cfteach.closedloop.noisy_belief import CONFUSED, DISENGAGED, LAPSE, RATIONALITY, UPTAKE
+from cfteach.closedloop.noisy_params import CONFUSED, DISENGAGED, LAPSE, RATIONALITY, UPTAKE
 
 MODELS = ("noisy", "fixed")
 _GRIDS = ("zpd_band", "rationality", "uptake", "disengaged", "confused")

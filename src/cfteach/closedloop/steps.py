@@ -1,4 +1,5 @@
-"""Per-step choice data for the noisy learner model (`cfteach.closedloop.noisy_belief`).
+"""Per-step choice data for the noisy learner model (`cfteach.closedloop.noisy_belief`):
+`StepData`, and the helpers that build it.
 
 A learner in state ``s`` weighs each action ``a`` by ``Q_w(s, a) = w . Psi(s, a)`` where
 ``Psi(s, a)`` is `DemoSet.dev_mu`: the feature counts of taking ``a`` and then following the
@@ -10,14 +11,62 @@ actions are optimal.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from cfteach.bec.demos import DemoSet
-from cfteach.closedloop.noisy_belief import StepData
 
 #: Two action values within this of each other are tied (both optimal).
 Q_TIE = 1e-9
+
+
+class StepData:
+    """Per-step choice data of some states: for each state (a group) the rows ``Psi(s, a)``
+    of its A actions (``rows [G, A, F]``), how often each was taken (``counts [G, A]``) or
+    which are optimal (``optimal [G, A]``). ``alt [G, F]`` / ``alt_action [G]`` (-1: none)
+    give a plan the learner is known to have for one action of a group (the rest of their
+    own finished answer): ``Q_w(s, a)`` is the better of ``w . Psi(s, a)`` and ``w . alt``,
+    as both are plans that start with ``a``."""
+
+    def __init__(self, rows: np.ndarray, counts: np.ndarray | None = None,
+                 optimal: np.ndarray | None = None, alt: np.ndarray | None = None,
+                 alt_action: np.ndarray | None = None) -> None:
+        self.rows = np.asarray(rows, dtype=np.float64)
+        if self.rows.ndim != 3:
+            raise ValueError(f"StepData rows: expected shape [G, A, F], got {self.rows.shape}")
+        self.counts = None if counts is None else np.asarray(counts, dtype=np.float64)
+        self.optimal = None if optimal is None else np.asarray(optimal, dtype=bool)
+        self.alt = None if alt is None else np.asarray(alt, dtype=np.float64)
+        self.alt_action = None if alt_action is None else np.asarray(alt_action, np.int64)
+
+    def x(self, points: np.ndarray) -> np.ndarray:
+        """``Q_w(s, a)`` for every point, state and action: ``[P, G, A]``."""
+        x = np.einsum("pf,gaf->pga", points, self.rows, optimize=True)
+        if self.alt is not None and self.alt_action is not None and len(self.alt):
+            g = np.flatnonzero(self.alt_action >= 0)
+            a = self.alt_action[g]
+            x[:, g, a] = np.maximum(x[:, g, a], points @ self.alt[g].T)
+        return x
+
+    @classmethod
+    def of(cls, entry: dict[str, Any]) -> StepData:
+        return cls(entry["rows"], entry.get("counts"), entry.get("optimal"), entry.get("alt"),
+                   entry.get("alt_action"))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"rows": self.rows, "counts": self.counts, "optimal": self.optimal,
+                "alt": self.alt, "alt_action": self.alt_action}
+
+
+def taken_actions(counts: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The states of `counts` ``[G, A]`` where one action was taken (state, action, count)
+    and those where several were (`NoisyBelief._taken_log_policy`)."""
+    n_taken = (counts != 0).sum(axis=1)
+    one = np.flatnonzero(n_taken == 1)
+    many = np.flatnonzero(n_taken != 1)
+    act = np.argmax(counts[one] != 0, axis=1) if len(one) else np.zeros(0, np.int64)
+    return one, act, counts[one, act], many
 
 
 def answer_steps(ds: DemoSet, env: int, states: Sequence[int], actions: Sequence[int],
