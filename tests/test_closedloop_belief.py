@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 
 from cfteach.closedloop.belief import ParticleBelief
+from cfteach.closedloop.noisy_belief import NoisyBelief
+from cfteach.closedloop.steps import StepData
 from cfteach.domains import load
 from cfteach.geometry import Region
 from cfteach.geometry.region import sphere_area
@@ -281,6 +283,23 @@ def test_same_seed_and_observations_give_the_same_state():
     assert len(b.history) == len(a.history) - 1  # copies do not share state
 
 
+def test_a_noisy_belief_copy_is_a_noisy_belief_that_continues_identically():
+    """copy() keeps the class: a NoisyBelief's what-if copy scores answers by its per-step
+    model (a ParticleBelief would not even have `observe_steps`)."""
+    rng = np.random.default_rng(5)
+    a = NoisyBelief(PRIOR, 3, n_particles=300, seed=4, n_reference=200)
+    answer = StepData(rng.normal(size=(6, 4, 3)), counts=rng.integers(0, 3, size=(6, 4)))
+    a.observe_demonstration(np.array([[1, 0, 0]]))
+    d = a.copy()
+    assert type(d) is NoisyBelief
+    for x in (a, d):
+        x.observe_steps(answer)
+    assert_same_state(a.state_dict(), d.state_dict())
+    d.observe_demonstration(np.array([[0, 1, 0]]))
+    assert len(d.history) == len(a.history) + 1  # the original did not see it
+    assert not np.array_equal(a.log_weights, d.log_weights)
+
+
 def test_a_different_seed_gives_different_particles():
     a = ParticleBelief(PRIOR, 3, n_particles=300, seed=11)
     b = ParticleBelief(PRIOR, 3, n_particles=300, seed=12)
@@ -288,22 +307,21 @@ def test_a_different_seed_gives_different_particles():
     assert not np.array_equal(a.reference, b.reference)
 
 
-def assert_same_state(x: dict, y: dict) -> None:
-    assert x.keys() == y.keys()
-    for key in x:
-        if key == "history":
-            assert len(x[key]) == len(y[key])
-            for ex, ey in zip(x[key], y[key], strict=True):
-                assert ex.keys() == ey.keys()
-                for k in ex:
-                    if isinstance(ex[k], np.ndarray):
-                        np.testing.assert_array_equal(ex[k], ey[k])
-                    else:
-                        assert ex[k] == ey[k], k
-        elif isinstance(x[key], np.ndarray):
-            np.testing.assert_array_equal(x[key], y[key], err_msg=key)
-        else:
-            assert x[key] == y[key], key
+def assert_same_state(x: object, y: object, where: str = "state") -> None:
+    """Equal, key by key and item by item, arrays exactly (a NoisyBelief's state holds
+    dicts of arrays: its grids and each particle's grid indices)."""
+    if isinstance(x, dict):
+        assert isinstance(y, dict) and x.keys() == y.keys(), where
+        for key in x:
+            assert_same_state(x[key], y[key], f"{where}.{key}")
+    elif isinstance(x, list):
+        assert isinstance(y, list) and len(x) == len(y), where
+        for i, (ex, ey) in enumerate(zip(x, y, strict=True)):
+            assert_same_state(ex, ey, f"{where}[{i}]")
+    elif isinstance(x, np.ndarray):
+        np.testing.assert_array_equal(x, y, err_msg=where)
+    else:
+        assert x == y, where
 
 
 @pytest.mark.parametrize(

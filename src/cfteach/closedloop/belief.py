@@ -19,7 +19,7 @@ observations. Equations: docs/closed-loop.md.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 from scipy.special import logsumexp
@@ -400,9 +400,10 @@ class ParticleBelief:
                         for e in self.history],
         }
 
-    def copy(self) -> ParticleBelief:
-        """An independent copy (for what-if updates: simulate an answer without committing)."""
-        out = ParticleBelief.__new__(ParticleBelief)
+    def copy(self) -> Self:
+        """An independent copy of the same class (for what-if updates: simulate an answer
+        without committing)."""
+        out = type(self).__new__(type(self))
         out.__dict__.update(self.__dict__)
         state = self.state_dict()
         for key in ("prior", "particles", "log_weights", "reference", "reference_loglik",

@@ -41,7 +41,7 @@ Equations: docs/closed-loop.md.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -456,10 +456,10 @@ class NoisyBelief(ParticleBelief):
                    ref_idx={k: i.copy() for k, i in self.ref_idx.items()})
         return out
 
-    def copy(self) -> NoisyBelief:
+    def copy(self) -> Self:
         out = super().copy()
-        out.idx = {k: i.copy() for k, i in self.idx.items()}  # type: ignore[attr-defined]
-        return out  # type: ignore[return-value]
+        out.idx = {k: i.copy() for k, i in self.idx.items()}
+        return out
 
 
 def _sat(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
