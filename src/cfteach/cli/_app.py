@@ -40,6 +40,7 @@ def _no_broken_words() -> None:
         if getattr(base, "_cfteach_whole_words", False):
             continue
 
+        # a subclass of whichever TextWrapper was found at run time, which mypy cannot type
         class _WholeWords(base):  # type: ignore[misc, valid-type]
             _cfteach_whole_words = True
             # click's own version always cuts; the standard library's honours the flag

@@ -70,8 +70,10 @@ def make(
         observation=observation, max_episode_steps=max_steps, disable_env_checker=True,
     )
     base = env.unwrapped
+    if not isinstance(base, GridEnv):  # ENV_ID is registered to GridEnv (register_envs)
+        raise TypeError(f"{ENV_ID} made a {type(base).__name__}, not a GridEnv")
     base.spec = env.spec  # the outer spec also records max_episode_steps
-    return base  # type: ignore[return-value]
+    return base
 
 
 def register_envs() -> None:

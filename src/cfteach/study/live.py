@@ -157,6 +157,7 @@ def _decided(t: ClosedLoopTeacher) -> tuple[Item | None, dict | None]:
         return memo[1], memo[2]
     item = t.next()
     summary = None if item is None else item_summary(t, item)
+    # kept on the teacher itself, so the memo goes wherever the teacher is cached
     t._live_decided = (len(t.responses), item, summary)  # type: ignore[attr-defined]
     return item, summary
 

@@ -185,6 +185,7 @@ class ItemDone(Strict):
 
 
 class Demographics(Strict):
+    # Literals of the tuples below, built at run time: pydantic reads them, mypy cannot
     age: Annotated[int, Field(ge=18, le=120), Int]
     gender: Literal[tuple(GENDERS)]  # type: ignore[valid-type]
     education: Literal[tuple(EDUCATION)] | None = None  # type: ignore[valid-type]

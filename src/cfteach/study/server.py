@@ -147,7 +147,7 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
         _not_blocked(request)
         if not well_formed_token(given):
             raise ApiError(401, "no_session", "missing or malformed session token")
-        return given  # type: ignore[return-value]
+        return given
 
     @app.post("/api/session", response_model=SessionStarted,
               responses=errors(400, 409, 413, 415, 422, 429))

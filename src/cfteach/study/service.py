@@ -8,7 +8,7 @@ import re
 import secrets
 import threading
 from datetime import datetime
-from typing import Any, cast
+from typing import Any, TypeGuard, cast
 
 from pydantic import ValidationError
 from sqlalchemy import Engine, func, select, text
@@ -42,7 +42,7 @@ ELSEWHERE = ("This study is already in progress in another browser. Please conti
              "there (the browser and tab you started it in).")
 
 
-def well_formed_token(token: str | None) -> bool:
+def well_formed_token(token: str | None) -> TypeGuard[str]:
     """Whether `token` could be a session token at all (checked before any lookup)."""
     return token is not None and TOKEN_RE.fullmatch(token) is not None
 
