@@ -171,12 +171,25 @@ def test_confused_prediction_is_a_mixture_over_the_belief(skate):
 
     rand = np.prod([ (ds.Q[e, st] >= ds.Q[e, st].max() - 1e-9).sum() / A
                      for st in ds.states[d, :3].tolist()])
-    want = 0.0
+    per_particle = []
     for p, beta in enumerate([30.0, 10.0]):
         mix = sum(wq * engaged(w[q], beta, sat[q, 0]) for q, wq in enumerate([0.7, 0.3]))
         own = engaged(w[p], beta, sat[p, 0])
-        want += [0.7, 0.3][p] * (0.9 * (0.6 * own + 0.4 * mix) + 0.1 * rand)
+        per_particle.append(0.9 * (0.6 * own + 0.4 * mix) + 0.1 * rand)
+    want = 0.7 * per_particle[0] + 0.3 * per_particle[1]
     assert got == pytest.approx(want, rel=1e-9)
+
+    # An answer known only by its outcome is scored by the same chances: the posterior is
+    # the prior times P(optimal) (correct) or 1 - P(optimal) (wrong), particle by particle.
+    # The region (1, -1, 0) . w >= 0 holds for the first particle only, as `sat` above.
+    region = np.array([[1.0, -1.0, 0.0]])
+    for correct in (True, False):
+        b = belief.copy()
+        b.resample = False
+        b.observe_outcome(data, region, correct)
+        lik = np.array(per_particle) if correct else 1 - np.array(per_particle)
+        post = np.array([0.7, 0.3]) * lik
+        np.testing.assert_allclose(b.weights, post / post.sum(), rtol=1e-9)
 
 
 @pytest.mark.parametrize(("confused", "ok"), [((0.0,), True), ((0.0, 0.99), True),

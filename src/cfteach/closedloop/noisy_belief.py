@@ -271,8 +271,11 @@ class NoisyBelief(ParticleBelief):
     def _outcome_ll(self, entry: dict[str, Any], x: np.ndarray, v: dict[str, np.ndarray],
                     ok: np.ndarray) -> np.ndarray:
         conf = entry.get("confused_p")
+        # `confused_p` is stored as ``[B, 1]`` (one test); a history read back from JSON
+        # may hold it flat.
         p = self._p_optimal(x, v, entry["optimal"], np.array([0]), ok[:, None],
-                            None if conf is None else conf[:, None])[:, 0]
+                            None if conf is None
+                            else np.asarray(conf, dtype=float).reshape(-1, 1))[:, 0]
         p = np.clip(p, 1e-300, 1 - 1e-12)
         return np.log(p) if entry["correct"] else np.log1p(-p)
 
