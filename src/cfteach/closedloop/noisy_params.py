@@ -16,19 +16,19 @@ import numpy as np
 RATIONALITY = (5.0, 10.0, 20.0, 50.0, 100.0, 300.0)
 #: Uptake grid: the chance a shown demonstration is taken in.
 UPTAKE = (0.2, 0.4, 0.6, 0.8, 0.95)
-#: Disengagement grid: the chance a whole answer is random moves.
-DISENGAGED = (0.01, 0.05, 0.2)
+#: Disengagement grid: the chance a whole answer is random moves. Its uniform prior has mean
+#: 0.042; the earlier (0.01, 0.05, 0.2), mean 0.087, kept every prediction about 0.05 under
+#: what engaged learners then scored (docs/closed-loop.md, "Measured").
+DISENGAGED = (0.005, 0.02, 0.1)
 #: Confusion grid: the chance an attempt used weights drawn from the belief of its time.
-#: ``(0.0,)``, the default, turns the term off (the model before it, bit for bit);
-#: ``(0.0, 0.25, 0.5, 0.75)`` is the grid measured in docs/closed-loop.md. It is not the
-#: default yet: over 30 sessions a wrong noisy answer lowers the predicted success with it
-#: in every domain (bench/bench_wrong_answer.py), but skateboard's p99 latency misses
-#: 300 ms with it and its calibration misses 0.10 in one cell.
-CONFUSED = (0.0,)
+#: ``(0.0,)`` turns the term off (the model before it, bit for bit). With the term, errors
+#: made while the learner's own belief was wide are not read as a low rationality for good:
+#: that was the noisy learners' under-prediction of 0.14-0.28 (docs/closed-loop.md).
+CONFUSED = (0.0, 0.25, 0.5, 0.75)
 #: Chance of a random move at any step, so that no move has likelihood 0. It caps every
 #: prediction of a T-step answer near (1 - lapse)^T (0.01 caps a 15-step answer at 0.89);
-#: 0.002 goes with the confusion grid in docs/closed-loop.md.
-LAPSE = 0.01
+#: 0.002 caps it at 0.97.
+LAPSE = 0.002
 
 
 def as_grid(values: Any, name: str, low: float, high: float, *,
