@@ -69,6 +69,11 @@ def test_calibration_and_ratios_are_well_formed(sweep):
     assert np.all((on_probes >= 0) & (on_probes <= 1))
     assert np.isnan(b.loc[b["condition"] == "proposed", "probe_observed"]).all()
     assert cal["observed_on_probes"] == pytest.approx(float(on_probes.mean()))
+    # the learners' expected post-test score (many plays of each): closed loop only
+    expected = b.loc[b["condition"] == "closed_loop", "expected"].to_numpy(float)
+    assert np.all((expected >= 0) & (expected <= 1))
+    assert np.isnan(b.loc[b["condition"] == "proposed", "expected"]).all()
+    assert cal["expected"] == pytest.approx(float(expected.mean()))
     cells = summ["ratios"]["cells"]["inattentive"]["skateboard"]
     assert set(cells) == {"closed_loop/proposed", "closed_loop/proposed_equal_budget",
                           "closed_loop/proposed_equal_items"}

@@ -82,3 +82,16 @@ def test_calibration_table_by_hand():
     beliefs["probe_observed"] = [1.0, np.nan, 0.5]  # a learner without probes is left out
     cal = calibration_table(_answers(rows), beliefs)["m"]["d"]
     assert cal["observed_on_probes"] == pytest.approx(0.75)
+    assert cal["expected"] is None and cal["correlation_ceiling"] is None  # not measured
+    # the learners' expected scores: the prediction against them, and the ceiling any
+    # per-learner prediction meets (expected against observed); a NaN pair is left out
+    beliefs["expected"] = [0.8, 0.7, 0.1]
+    cal = calibration_table(_answers(rows), beliefs)["m"]["d"]
+    assert cal["expected"] == pytest.approx(1.6 / 3)
+    assert cal["correlation_with_expected"] == pytest.approx(
+        np.corrcoef([0.9, 0.6, 0.3], [0.8, 0.7, 0.1])[0, 1])
+    assert cal["correlation_ceiling"] == pytest.approx(
+        np.corrcoef([0.8, 0.7, 0.1], observed)[0, 1])
+    beliefs["expected"] = [0.8, np.nan, 0.1]  # two finite pairs: r is undefined
+    cal = calibration_table(_answers(rows), beliefs)["m"]["d"]
+    assert cal["correlation_ceiling"] is None and cal["expected"] == pytest.approx(0.45)

@@ -240,3 +240,48 @@ def test_answer_moves_replay_to_the_same_feature_counts(model):
                 s = int(batch.next_state[0, s, k])
             assert np.allclose(mu, a["feature_counts"][i, j])
             assert (s == batch.sink) == bool(a["finished"][i, j])
+
+
+def _p_optimal_by_dp(batch, env: int, w: np.ndarray, temperature: float) -> np.ndarray:
+    """P(a Boltzmann player who knows `w` ends on an optimal path) from every state,
+    by dynamic programming over the MDP: p(s) = sum over optimal a of pi(a|s) p(next)."""
+    q = value_iteration(batch, w[None], env=[env]).Q[0, 0]
+    optimal = q >= q.max(axis=-1, keepdims=True) - 1e-9
+    logits = q / temperature
+    pi = np.exp(logits - logits.max(axis=-1, keepdims=True))
+    pi /= pi.sum(axis=-1, keepdims=True)
+    nxt, sink = batch.next_state[env], batch.sink
+    p = np.zeros(nxt.shape[0])
+    for _ in range(4 * nxt.shape[0]):
+        p = (pi * optimal * p[nxt]).sum(axis=-1)
+        p[sink] = 1.0
+    return p
+
+
+@pytest.mark.parametrize(("env", "state"), [(30, 51), (2, 14)])
+def test_expected_correct_matches_dynamic_programming(env: int, state: int) -> None:
+    """A noisy learner who knows w*: its expected P(optimal) on a test equals the exact
+    probability that Boltzmann play takes optimal actions only (within 4 standard errors
+    of the Monte Carlo estimate)."""
+    dom = load("delivery")
+    temperature, draws = 0.1, 1500
+    learners = Learners(dom, learner_model("noisy", temperature=temperature), 1, rng=3)
+    learners.beliefs = [_tight_cone(dom.weights, 1e-4)]
+    w = np.array(dom.weights, dtype=float) / np.linalg.norm(dom.weights)
+    exact = _p_optimal_by_dp(learners.batch, env, w, temperature)
+    test = make_demo(dom, env, state)
+    s = learners.batch.index_of(env, dom.instances()[env].state_from_json(test["start_state"]))
+    assert 0.05 < exact[s] < 0.95  # a state where the estimate is not trivially 0 or 1
+    est = learners.expected_correct([test], draws)[0]
+    se = np.sqrt(exact[s] * (1 - exact[s]) / draws)
+    assert abs(est - exact[s]) < 4 * se
+
+
+def test_expected_correct_edge_cases() -> None:
+    dom = load("skateboard")
+    learners = Learners(dom, "noisy", 2, rng=0)
+    assert np.isnan(learners.expected_correct([])).all()
+    with pytest.raises(ValueError, match="draws must be >= 1"):
+        learners.expected_correct(_tests(dom, 2, seed=0), 0)
+    with pytest.raises(ValueError, match="one play per test"):
+        learners._play(_tests(dom, 2, seed=0), 2, moves=True)

@@ -27,6 +27,8 @@ EQUAL_BUDGET = "proposed_equal_budget"
 EQUAL_ITEMS = "proposed_equal_items"
 #: The open-loop curriculum every closed-loop session covers (docs/closed-loop.md).
 BACKBONE = "proposed"
+#: Plays of every post-test behind each closed-loop learner's expected score.
+EXPECTED_DRAWS = 64
 
 
 @cache
@@ -89,7 +91,8 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
     keys = ("correct", "reward", "finished", "contains_w_star", "belief_area",
             "belief_area_se", "belief_constraints", "ignored_updates")
     out: dict[str, list] = {k: [] for k in (*keys, "items", "demos", "tests", "feedback",
-                                            "predicted", "knowledge", "probe_observed")}
+                                            "predicted", "knowledge", "probe_observed",
+                                            "expected")}
     probe_tests = probes.probe_tests(pool, settings.n_probes)
     for child in ss.spawn(chunk["n"]):
         learner_rng, teacher_seed = np.random.default_rng(child), child.generate_state(1)[0]
@@ -102,6 +105,10 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
         # to tell a miscalibrated model apart from probes unlike the post-tests
         on_probes = (float(learners.answer(probe_tests)["correct"][0].mean())
                      if probe_tests else np.nan)
+        # last, the learner's expected score on the post-tests (its observed one samples
+        # it): the ceiling of any per-learner prediction, see `calibration_table`
+        expected = (float(learners.expected_correct(chunk["tests"], EXPECTED_DRAWS)[0])
+                    if chunk["tests"] else np.nan)
         areas, se = learners.belief_area_estimates()
         for k, v in (("correct", None if ans is None else ans["correct"][0]),
                      ("reward", None if ans is None else ans["reward"][0]),
@@ -114,7 +121,7 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
                      ("tests", counts["test"]), ("feedback", counts["feedback"]),
                      ("predicted", np.nan if pred["predicted"] is None else pred["predicted"]),
                      ("knowledge", np.nan if pred["knowledge"] is None else pred["knowledge"]),
-                     ("probe_observed", on_probes)):
+                     ("probe_observed", on_probes), ("expected", expected)):
             out[k].append(v)
     res: dict[str, Any] = {k: np.asarray(v) for k, v in out.items()}
     res["optimal_reward"] = None if ans is None else ans["optimal_reward"]

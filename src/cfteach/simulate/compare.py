@@ -84,17 +84,24 @@ def geometric_mean(ratios: list[float]) -> float | None:
 def calibration_table(answers: pd.DataFrame, beliefs: pd.DataFrame
                       ) -> dict[str, dict[str, dict[str, Any]]]:
     """``calibration[learner][domain] = {predicted, observed, n, gap, correlation,
-    observed_on_probes}``: the closed-loop teacher's mean predicted P(optimal) at its stop
-    (on its own probes, never the post-tests), the learners' mean observed P(optimal) on
-    the post-tests, their difference, the per-learner Pearson correlation (None when either
-    does not vary) and the learners' mean P(optimal) on the teacher's probes themselves
-    (None when not measured): `predicted` against it is the model's error alone."""
+    observed_on_probes, expected, correlation_with_expected, correlation_ceiling}``: the
+    closed-loop teacher's mean predicted P(optimal) at its stop (on its own probes, never
+    the post-tests), the learners' mean observed P(optimal) on the post-tests, their
+    difference, the per-learner Pearson correlation (None when either does not vary) and
+    the learners' mean P(optimal) on the teacher's probes themselves (None when not
+    measured): `predicted` against it is the model's error alone.
+
+    A simulated learner's observed score is a sample of its expected score (`expected`,
+    the mean over many plays of each post-test): `correlation_with_expected` is the
+    prediction's correlation with that, free of the post-tests' sampling noise, and
+    `correlation_ceiling` the expected score's own correlation with the observed one, the
+    best any per-learner prediction can reach on average."""
     if answers.empty or "predicted" not in beliefs.columns:
         return {}
     per = per_learner(answers[answers["condition"] == CLOSED])
     b = beliefs[beliefs["condition"] == CLOSED]
     cols = ["learner_model", "domain", "seed", "learner", "predicted"]
-    cols += ["probe_observed"] if "probe_observed" in b.columns else []
+    cols += [c for c in ("probe_observed", "expected") if c in b.columns]
     m = per.merge(b[cols],
                   on=["learner_model", "domain", "seed", "learner"])
     out: dict[str, dict[str, dict[str, Any]]] = {}
@@ -103,13 +110,25 @@ def calibration_table(answers: pd.DataFrame, beliefs: pd.DataFrame
         if not len(g):
             continue
         pred, obs = g["predicted"].to_numpy(float), g["p_optimal"].to_numpy(float)
-        corr = (float(np.corrcoef(pred, obs)[0, 1])
-                if len(g) >= 3 and np.ptp(pred) > 0 and np.ptp(obs) > 0 else None)
+        exp = g["expected"].to_numpy(float) if "expected" in g else np.full(len(g), np.nan)
         out.setdefault(str(model), {})[str(dom)] = {
             "predicted": float(pred.mean()), "observed": float(obs.mean()), "n": int(len(g)),
-            "gap": float(pred.mean() - obs.mean()), "correlation": corr,
-            "observed_on_probes": _mean_finite(g.get("probe_observed"))}
+            "gap": float(pred.mean() - obs.mean()), "correlation": _pearson(pred, obs),
+            "observed_on_probes": _mean_finite(g.get("probe_observed")),
+            "expected": _mean_finite(g.get("expected")),
+            "correlation_with_expected": _pearson(pred, exp),
+            "correlation_ceiling": _pearson(exp, obs)}
     return out
+
+
+def _pearson(x: np.ndarray, y: np.ndarray) -> float | None:
+    """Pearson's r over the pairs where both are finite; None with fewer than 3 pairs or
+    when either side does not vary (r has no value then)."""
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if len(x) < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
+        return None
+    return float(np.corrcoef(x, y)[0, 1])
 
 
 def _mean_finite(col: pd.Series | None) -> float | None:

@@ -394,13 +394,38 @@ class Learners:
         `[n, len(tests)]`), `feature_counts` `[n, len(tests), F]` of the answers and
         `optimal_reward` `[len(tests)]`; with `moves`, also `actions[i][j]`: learner i's
         moves on test j (action names), drawn with the same random numbers."""
+        out = self._play(tests, 1, moves=moves)
+        for k in ("reward", "finished", "correct", "feature_counts"):
+            out[k] = out[k][:, 0]
+        return out
+
+    def expected_correct(self, tests: Sequence[dict[str, Any]], draws: int = 64
+                         ) -> np.ndarray:
+        """Each learner's expected P(optimal) on `tests` `[n]`, estimated from `draws`
+        independent plays of every test (each with its own weight sample). A simulation
+        knows what a person's score only samples: the best any per-learner prediction of
+        the observed score can do is to match this. Consumes random numbers: call it after
+        everything whose draws should not change."""
+        if draws < 1:
+            raise ValueError(f"draws must be >= 1, got {draws}")
+        if not tests:
+            return np.full(self.n, np.nan)
+        return self._play(tests, int(draws))["correct"].mean(axis=(1, 2))
+
+    def _play(self, tests: Sequence[dict[str, Any]], m: int, *, moves: bool = False
+              ) -> dict[str, Any]:
+        """`m` plays of every test by every learner: `reward`, `finished`, `correct`
+        `[n, m, T]`, `feature_counts` `[n, m, T, F]`, `optimal_reward` `[T]` and, with
+        `moves` (m = 1 only), `actions`. With m = 1 the draws are those `answer` makes."""
         from cfteach.mdp import greedy_actions, rollout_from
         from cfteach.simulate.planning import policy_paths
 
-        T = len(tests)
-        reward = np.zeros((self.n, T))
-        counts = np.zeros((self.n, T, self.batch.F))
-        finished = np.zeros((self.n, T), dtype=bool)
+        if moves and m != 1:
+            raise ValueError("moves are recorded for one play per test only")
+        T, nm = len(tests), self.n * m
+        reward = np.zeros((nm, T))
+        counts = np.zeros((nm, T, self.batch.F))
+        finished = np.zeros((nm, T), dtype=bool)
         optimal = np.zeros(T)
         by_env: dict[int, list[int]] = {}
         paths: list[list[list[str]]] = [[[] for _ in range(T)] for _ in range(self.n)]
@@ -416,8 +441,8 @@ class Learners:
             for j in js:
                 opt = tests[j].get("optimal_reward")
                 optimal[j] = float(v_star[starts[j]]) if opt is None else float(opt)
-            _, q, bounded = self._plan_samples(env, 1, self.model.unbounded != "drop")
-            st = np.broadcast_to(starts[js], (self.n, len(js)))
+            _, q, bounded = self._plan_samples(env, m, self.model.unbounded != "drop")
+            st = np.broadcast_to(starts[js], (nm, len(js)))
             nxt, feats = self.batch.next_state[env], self.batch.features[env]
             max_steps = 4 * int(self.batch.n_states[env]) + 4
             record: list = []
@@ -442,8 +467,11 @@ class Learners:
             counts[:, js] = mu
             finished[:, js] = fin
         correct = score_answers(reward, finished, optimal[None, :])
-        out: dict[str, Any] = {"reward": reward, "finished": finished, "correct": correct,
-                               "optimal_reward": optimal, "feature_counts": counts}
+        out: dict[str, Any] = {"reward": reward.reshape(self.n, m, T),
+                               "finished": finished.reshape(self.n, m, T),
+                               "correct": correct.reshape(self.n, m, T),
+                               "optimal_reward": optimal,
+                               "feature_counts": counts.reshape(self.n, m, T, -1)}
         if moves:
             out["actions"] = paths
         return out

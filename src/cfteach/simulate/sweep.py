@@ -196,6 +196,7 @@ def _simulate_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
         "predicted": np.full(chunk["n"], np.nan),
         "knowledge": np.full(chunk["n"], np.nan),
         "probe_observed": np.full(chunk["n"], np.nan),
+        "expected": np.full(chunk["n"], np.nan),
     }
 
 
@@ -370,7 +371,7 @@ def simulate(material: list[Material], learner_models: Sequence[str | LearnerMod
             "ignored_updates": res["ignored_updates"], "items": res["items"],
             "demos": res["demos"], "tests": res["tests"], "feedback": res["feedback"],
             "predicted": res["predicted"], "knowledge": res["knowledge"],
-            "probe_observed": res["probe_observed"]}))
+            "probe_observed": res["probe_observed"], "expected": res["expected"]}))
         if res["correct"] is None:
             continue
         n, t = res["correct"].shape
