@@ -401,11 +401,9 @@ class Learners:
 
     def expected_correct(self, tests: Sequence[dict[str, Any]], draws: int = 64
                          ) -> np.ndarray:
-        """Each learner's expected P(optimal) on `tests` `[n]`, estimated from `draws`
-        independent plays of every test (each with its own weight sample). A simulation
-        knows what a person's score only samples: the best any per-learner prediction of
-        the observed score can do is to match this. Consumes random numbers: call it after
-        everything whose draws should not change."""
+        """Each learner's expected P(optimal) on `tests` `[n]` over `draws` plays of each
+        (own weight sample each): what an observed score only samples, so the best any
+        per-learner prediction can match. Consumes random numbers: call it last."""
         if draws < 1:
             raise ValueError(f"draws must be >= 1, got {draws}")
         if not tests:
