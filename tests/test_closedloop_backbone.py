@@ -78,3 +78,39 @@ def test_replay_with_a_backbone_restores_the_same_items(material):
     t = _run(backed, seed=4)
     again = ClosedLoopTeacher.replay(backed, t.responses, settings=SMALL, seed=4)
     assert [i.to_json(backed) for i in t.items] == [i.to_json(backed) for i in again.items]
+
+
+def _run_failing(pool, seed: int = 0) -> ClosedLoopTeacher:
+    """A learner who never finishes a test: every test fails, every failure gets feedback."""
+    t = ClosedLoopTeacher(pool, SMALL, seed=seed)
+    while (item := t.next()) is not None:
+        t.observe({"feature_counts": [0.0] * pool.ds.F, "finished": False}
+                  if item.kind == "test" else {})
+    return t
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_a_learner_who_keeps_failing_still_sees_the_whole_backbone(material, seed):
+    """Remedial lessons after failed tests once filled the item budget first (a noisy
+    skateboard learner saw 1 of 7 backbone lessons in 40 items)."""
+    _, _, backed = material
+    t = _run_failing(backed, seed)
+    shown = [it.demo for it in t.items if it.purpose == "backbone"]
+    assert shown == list(t._backbone) and len(shown) >= 5
+    assert any(it.purpose == "remedial" for it in t.items)  # remediation still happens
+    # while backbone lessons remain, no remedial lesson for a test about a remedial lesson
+    last_backbone = max(it.index for it in t.items if it.purpose == "backbone")
+    for it in t.items[:last_backbone]:
+        if it.purpose == "remedial":
+            test = t.items[it.about]
+            assert test.about is None or t.items[test.about].purpose != "remedial"
+
+
+def test_a_failing_learner_without_backbone_is_remediated_as_before(material):
+    """Without a backbone the remedial rule is unchanged: remedial lessons may chain."""
+    _, plain, _ = material
+    t = _run_failing(plain)
+    chained = [it for it in t.items if it.purpose == "remedial" and it.about is not None
+               and t.items[it.about].about is not None
+               and t.items[t.items[it.about].about].purpose == "remedial"]
+    assert chained

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from cfteach.closedloop import probes
+from cfteach.closedloop import backbone, probes
 from cfteach.closedloop.belief import ParticleBelief
 from cfteach.closedloop.items import KINDS, Item, Outcome, score_answer
 from cfteach.closedloop.noisy_belief import NoisyBelief
@@ -81,7 +81,7 @@ class ClosedLoopTeacher:
         self._probes = probes.probe_demos(self.pool, st.n_probes)
         self._no_lesson = probes.lesson_blocked(self.pool, st.n_probes)
         self._usable_lessons = self._lessons_allowed()
-        self._backbone = self._backbone_demos()
+        self._backbone = backbone.lessons(self.pool, self._no_lesson)
         self._progress = [0.0]
         self._prediction_memo: tuple[Any, dict[str, float | None]] = (None, {})
 
@@ -295,15 +295,19 @@ class ClosedLoopTeacher:
                 return check
             self.stop_reason = "no diagnostic test left"
             return None
-        backbone = self._backbone_lesson()
-        if backbone is None and self._passes_in_a_row() >= st.min_passes:
+        backbone_item = backbone.next_lesson(self.items, self._backbone,
+                                            self._blocked_lessons())
+        if backbone_item is None and self._passes_in_a_row() >= st.min_passes:
             know = self.knowledge()
             if know is not None and know >= st.stop_threshold:
                 self.stop_reason = f"knowledge on the probes {know:.3f}"
                 return None
         failed = self._open_failure()
+        if failed is not None and not backbone.may_remediate(self.items, self._backbone,
+                                                             failed, st.max_items):
+            failed = None  # the backbone's remaining lessons come first
         lesson = self._remedial(failed) if failed is not None else None
-        lesson = lesson or backbone or self._lesson()
+        lesson = lesson or backbone_item or self._lesson()
         if lesson is not None:
             return lesson
         if last is None or last.kind != "test":
@@ -357,33 +361,6 @@ class ClosedLoopTeacher:
         prev = next((it.demo for it in reversed(self.items) if it.kind == "demonstration"),
                     None)
         return tie_break(self.pool.ds, fresh or members, prev, self._rng())
-
-    def _backbone_demos(self) -> list[int]:
-        """The pool's backbone as lessons this teacher may show: a demo whose start is a
-        post-test's or a probe's is replaced by another demo with the same constraints
-        (dropped when there is none)."""
-        out = []
-        for d in self.pool.backbone:
-            if d in self._no_lesson:
-                s = int(self.pool.lessons.slot[d])
-                same: list[int] = self.pool.lessons.members[s].tolist() if s >= 0 else []
-                alt = [int(m) for m in same if int(m) not in self._no_lesson]
-                if not alt:
-                    continue
-                d = alt[0]
-            out.append(d)
-        return out
-
-    def _backbone_lesson(self) -> Item | None:
-        """The next backbone lesson not yet shown as one (None when all are shown, or the
-        next would repeat a demonstration more than `max_repeat` times in a row)."""
-        k = sum(it.purpose == "backbone" for it in self.items)
-        if k >= len(self._backbone):
-            return None
-        d = self._backbone[k]
-        if d in self._blocked_lessons():
-            return None
-        return Item(len(self.items), "demonstration", "backbone", d)
 
     def _usable(self, blocked: set[int]) -> np.ndarray:
         """bool per lesson row set: it has a member that may be shown now."""
