@@ -114,6 +114,35 @@ def test_wrong_answer_gets_feedback_and_then_a_remedial_lesson(material):
         assert nxt.purpose == "remedial" and nxt.about == item.index
 
 
+def test_feedback_is_chosen_before_the_failed_answers_update(material):
+    """A failed answer's feedback needs no belief, so `next()` returns it without the
+    answer's update (the costly part of a decision: a server shows feedback at once); the
+    update runs when the belief is next read, and the session is bit-identical to one whose
+    belief was read (updated) after every response."""
+    _, _, pool = material
+    lazy, eager = (ClosedLoopTeacher(pool, SMALL, seed=2) for _ in range(2))
+    deferred = 0
+    while (item := lazy.next()) is not None:
+        assert eager.next().to_json(pool) == item.to_json(pool)
+        response = {"actions": []} if item.kind == "test" else {}  # every test failed
+        seen = len(lazy.as_chosen[1].history)
+        lazy.observe(response)
+        eager.observe(response)
+        eager.belief.history  # noqa: B018 - reading the belief folds the answer in
+        if item.kind == "test" and len(lazy.items) < SMALL.max_items:
+            feedback = lazy.next()
+            assert feedback is not None and feedback.kind == "feedback"
+            assert len(lazy.as_chosen[1].history) == seen  # not updated yet
+            deferred += 1
+    assert deferred >= 2 and eager.next() is None
+    a, b = lazy.state_dict(), eager.state_dict()
+    assert a["items"] == b["items"] and a["stop_reason"] == b["stop_reason"]
+    assert _same(a["belief"], b["belief"]) and a["progress"] == b["progress"]
+    # a failed test moves the progress bar one item's share: no jump, never backwards
+    steps = np.diff(a["progress"])
+    assert np.all(steps > 0)
+
+
 def test_optimal_answer_is_scored_correct(material):
     _, _, pool = material
     teacher = ClosedLoopTeacher(pool, SMALL, seed=1)

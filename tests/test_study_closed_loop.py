@@ -9,6 +9,7 @@ import json
 import uuid
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -395,20 +396,35 @@ def test_game_from_batch_is_build_game(name: str) -> None:
         assert game_from_batch(ds, d) == want
 
 
-def test_held_out_summary_equals_the_teachers_own(cl_study: Path) -> None:
-    """The exported `predicted_held_out` (asked of the held-out rows only) is exactly the
-    teacher's `predicted_held_out()` at every item of a session."""
-    from cfteach.study.live import held_out_p
+def test_held_out_summary_is_the_mass_inside_each_held_out_tests_region(
+        cl_study: Path) -> None:
+    """The exported `predicted_held_out` (asked of the distinct held-out row sets only) is,
+    at every item of a session, the mass of the belief the item was chosen with that
+    satisfies every row of each held-out test, test by test, averaged; for feedback that
+    belief is the one before the failed answer (the update waits: the server answers at
+    once), and the teacher's own summary after the update is the same computation."""
+    from cfteach.study.live import item_summary
+
+    def by_test(pool, b) -> float:
+        return float(np.mean([b.weights @ np.all(pool.test_rows.of(d) @ b.particles.T
+                                                 >= -1e-9, axis=0)
+                              for d in sorted(pool.held_out)]))
 
     cell = load_study(cl_study)["closed_loop"]["skateboard"]
     pool = pool_from_cell(cell)
     t = ClosedLoopTeacher(pool, settings_of(cell), seed=11)
-    seen = 0
+    seen = feedback = 0
     while (item := t.next()) is not None:
-        assert held_out_p(t) == t.predicted_held_out()
+        history = len(t.as_chosen[1].history)
+        want = by_test(*t.as_chosen)
+        summary = item_summary(t, item)
+        assert summary["predicted_held_out"] == pytest.approx(want, abs=1e-12)
+        assert len(t.as_chosen[1].history) == history  # the summary did not update
+        feedback += item.kind == "feedback"
+        assert t.predicted_held_out() == pytest.approx(by_test(t.pool, t.belief), abs=1e-12)
         t.observe({"actions": ["up"]} if item.kind == "test" else {})
         seen += 1
-    assert seen >= 3
+    assert seen >= 3 and feedback >= 1
 
 
 def test_progress_moves_with_every_item_and_is_the_teachers_own(cl_study: Path,

@@ -124,6 +124,26 @@ class LessonPool:
                        lessons=RowIndex.build(lesson_rows, every),
                        tests=RowIndex.build(test_rows, every), cache=dict(self.cache))
 
+    def held_out_mass(self, particles: np.ndarray, weights: np.ndarray) -> float | None:
+        """Belief mass inside the held-out tests' regions, averaged over them (None without
+        held-out tests), asking the particles about those tests' rows only (a few dozen of
+        the pool's rows instead of all of them). For analysis: no decision reads it."""
+        held = np.array(sorted(self.held_out), dtype=np.int64)
+        if not len(held):
+            return None
+        slots = self.tests.slot[held]
+        used = np.unique(slots[slots >= 0])
+        p = np.ones(len(held))
+        if len(used):
+            inc = self.tests.incidence[used]
+            cols = np.unique(inc.indices)
+            broken = (self.tests.rows[cols] @ particles.T < -SATISFIED_TOL).astype(np.float32)
+            sat = np.asarray(inc[:, cols] @ broken) == 0  # [sets, P]
+            p_set = dict(zip(used.tolist(), (sat.astype(float) @ weights).tolist(),
+                             strict=True))
+            p = np.array([p_set[int(k)] if k >= 0 else 1.0 for k in slots.tolist()])
+        return float(p.mean())
+
     def test_alternatives(self, d: int) -> np.ndarray:
         """Feature counts of the other answers test d's constraints compare against:
         ``mu* - row`` for every row (one-action deviations and human-model plans)."""

@@ -18,7 +18,8 @@ The loop (docs/closed-loop.md):
 2. A *diagnostic test* on what the lesson taught: the test whose chance of an optimal answer
    differs most between particles that absorbed the lesson and particles that did not.
 3. A right answer moves on; a wrong one gets *feedback* (the learner's answer beside the
-   optimal one, which the belief treats as a demonstration) and, while the belief still
+   optimal one, which the belief treats as a demonstration; chosen at once, the answer's
+   update waits until something reads the belief: `_settle`) and, while the belief still
    predicts a wrong answer on that test, a *remedial lesson* aimed at the particles that
    fail it.
 4. After the first test, a test at least every ``test_every`` items; when no lesson would
@@ -33,7 +34,6 @@ server can restore a session from its event log and a simulation can be re-run e
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -49,35 +49,31 @@ from cfteach.teaching.visual import tie_break
 
 __all__ = ["ClosedLoopTeacher", "Item", "TeacherSettings"]
 
-@dataclass(eq=False)
 class ClosedLoopTeacher:
     """A closed-loop teaching session for one learner (module docstring)."""
 
-    pool: LessonPool
-    settings: TeacherSettings = field(default_factory=TeacherSettings)
-    seed: int = 0
-
-    def __post_init__(self) -> None:
+    def __init__(self, pool: LessonPool, settings: TeacherSettings | None = None,
+                 seed: int = 0) -> None:
+        self._unsettled: tuple[int, Outcome, int] | None = None  # a test answer not in yet
+        self._pool, self.settings, self.seed = pool, settings or TeacherSettings(), seed
         ds = self.pool.ds
         st = self.settings
         prior = np.asarray(self.pool.domain.prior).reshape(-1, ds.F)
-        self.belief: ParticleBelief
         if st.model == "noisy":
-            self.belief = NoisyBelief(prior, ds.F, n_particles=st.n_particles, seed=self.seed,
-                                      rationality=st.rationality, uptake=st.uptake,
-                                      disengaged=st.disengaged, confused=st.confused,
-                                      lapse=st.lapse)
+            self._belief = NoisyBelief(prior, ds.F, n_particles=st.n_particles,
+                                       seed=self.seed, rationality=st.rationality,
+                                       uptake=st.uptake, disengaged=st.disengaged,
+                                       confused=st.confused, lapse=st.lapse)
         else:
-            self.belief = ParticleBelief(prior, ds.F, n_particles=st.n_particles,
-                                         seed=self.seed, p_learn=st.p_learn,
-                                         temperature=st.temperature)
+            self._belief = ParticleBelief(prior, ds.F, n_particles=st.n_particles,
+                                          seed=self.seed, p_learn=st.p_learn,
+                                          temperature=st.temperature)
         self.items: list[Item] = []
         self.responses: list[dict[str, Any]] = []
         self.outcomes: dict[int, Outcome] = {}
         self.stop_reason: str | None = None
         self._pending: Item | None = None
         self._used_tests: set[int] = set()
-        self._held = np.array(sorted(self.pool.held_out), dtype=np.int64)
         self._probes = probes.probe_demos(self.pool, st.n_probes)
         self._no_lesson = probes.lesson_blocked(self.pool, st.n_probes)
         self._usable_lessons = self._lessons_allowed()
@@ -90,14 +86,37 @@ class ClosedLoopTeacher:
     def done(self) -> bool:
         return self.stop_reason is not None
 
+    @property
+    def belief(self) -> ParticleBelief:
+        """The belief after every response so far (a deferred answer folded in first)."""
+        self._settle()
+        return self._belief
+
+    @belief.setter
+    def belief(self, value: ParticleBelief) -> None:
+        self._settle()
+        self._belief = value
+
+    @property
+    def pool(self) -> LessonPool:
+        """The pool with the human models drawn from the belief so far (`_draw_models`)."""
+        self._settle()
+        return self._pool
+
+    @property
+    def as_chosen(self) -> tuple[LessonPool, ParticleBelief]:
+        """The pool and belief the pending item was chosen with (feedback: before `_settle`)."""
+        return self._pool, self._belief
+
     def next(self) -> Item | None:
         """The item to show now (the same one until it is observed), or None when done."""
         if self._pending is not None or self.done:
             return self._pending
         if len(self.items) >= self.settings.max_items:
+            self._settle()
             self.stop_reason = "item budget reached"
             return None
-        item = self._decide()
+        item = self._feedback() or self._decide()
         if item is None:
             return None
         self._pending = item
@@ -110,14 +129,14 @@ class ClosedLoopTeacher:
         item = self._pending
         if item is None:
             raise RuntimeError("observe() without a pending item: call next() first")
+        self._settle()
         response = dict(response or {})
         ds = self.pool.ds
         if item.kind == "test":
             outcome = score_answer(self.pool, item.demo, response)
-            self._observe_answer(item.demo, outcome)
             self.outcomes[item.index] = outcome
             self._used_tests.add(item.demo)
-            self._draw_models()
+            self._unsettled = (item.demo, outcome, len(self.items))
         elif item.kind == "feedback":
             rows = [self.pool.lesson_rows.of(item.demo)]
             assert item.about is not None  # feedback is always about a test
@@ -131,21 +150,44 @@ class ClosedLoopTeacher:
         self.items.append(item)
         self.responses.append(response)
         self._pending = None
-        self._progress.append(self._next_progress())
+        if self._unsettled is None:
+            self._progress.append(self._next_progress())
+        elif not self._unsettled[1].correct:  # nothing learnt: one item's share, no jump
+            self._progress.append(self._step_progress())
 
-    def _draw_models(self) -> None:
+    def _settle(self) -> None:
+        """Fold a deferred test answer into the belief. A failed answer's feedback needs no
+        belief, so the update (a decision's costly part) waits until something reads the
+        belief: a server shows the feedback at once. Same operations, same order, same result."""
+        if self._unsettled is None:
+            return
+        (demo, outcome, k), self._unsettled = self._unsettled, None
+        self._observe_answer(demo, outcome)
+        self._draw_models(k)
+        if outcome.correct:
+            self._progress.append(self._next_progress())
+
+    def _feedback(self) -> Item | None:
+        """Feedback after a failed test (it needs no belief: `_settle`)."""
+        last = self.items[-1] if self.items else None
+        if last is None or last.kind != "test" or self.outcomes[last.index].correct:
+            return None
+        return Item(len(self.items), "feedback", "feedback", last.demo, about=last.index,
+                    answer=self.responses[-1])
+
+    def _draw_models(self, k: int) -> None:
         """After a test answer, `belief_models` weighted particles join this session's pool
         as human models, so lessons and tests reach the plans of learners like this one
-        (docs/closed-loop.md, "Human models from the belief"). Seeded by the item count."""
-        k, w = self.settings.belief_models, self.belief.weights
-        live = np.flatnonzero(w > 0) if k > 0 else ()
+        (docs/closed-loop.md, "Human models from the belief"). Seeded by the test's index."""
+        n, w = self.settings.belief_models, self._belief.weights
+        live = np.flatnonzero(w > 0) if n > 0 else ()
         if not len(live):
             return
-        rng = np.random.default_rng([self.seed, 5, len(self.items)])
-        pick = rng.choice(live, size=min(k, len(live)), replace=False,
+        rng = np.random.default_rng([self.seed, 5, k])
+        pick = rng.choice(live, size=min(n, len(live)), replace=False,
                           p=w[live] / w[live].sum())
         probes.probe_paths(self.pool, self.settings.n_probes)  # cached before the pool grows
-        self.pool = self.pool.with_models(self.belief.particles[np.sort(pick)])
+        self._pool = self._pool.with_models(self._belief.particles[np.sort(pick)])
         self._usable_lessons = self._lessons_allowed()
 
     def _lessons_allowed(self) -> np.ndarray:
@@ -154,19 +196,19 @@ class ClosedLoopTeacher:
                          for m in self.pool.lessons.members], dtype=bool)
 
     def _observe_answer(self, d: int, outcome: Outcome) -> None:
-        ds = self.pool.ds
-        if isinstance(self.belief, NoisyBelief):
+        ds, belief = self.pool.ds, self._belief
+        if isinstance(belief, NoisyBelief):
             if outcome.actions is not None and outcome.states is not None:
-                self.belief.observe_steps(answer_steps(ds, int(ds.env[d]), outcome.states,
-                                                       outcome.actions, outcome.finished))
+                belief.observe_steps(answer_steps(ds, int(ds.env[d]), outcome.states,
+                                                  outcome.actions, outcome.finished))
             else:
                 data, _ = path_steps(ds, [d])
-                self.belief.observe_outcome(data, self.pool.test_rows.of(d).astype(float),
-                                            outcome.correct)
+                belief.observe_outcome(data, self.pool.test_rows.of(d).astype(float),
+                                       outcome.correct)
             return
-        self.belief.observe_answer(ds.mu[d].astype(float), outcome.mu,
-                                   self.pool.test_alternatives(d),
-                                   finished=outcome.finished, correct=outcome.correct)
+        belief.observe_answer(ds.mu[d].astype(float), outcome.mu,
+                              self.pool.test_alternatives(d),
+                              finished=outcome.finished, correct=outcome.correct)
 
     @classmethod
     def replay(cls, pool: LessonPool, responses: list[dict[str, Any]], *,
@@ -182,22 +224,8 @@ class ClosedLoopTeacher:
     # -- summaries -------------------------------------------------------------------------
     def predicted_held_out(self) -> float | None:
         """Belief mass inside the held-out tests' regions, averaged over them (None without
-        held-out tests; the study exports it as `predicted_held_out`). For analysis only: no
-        decision reads it (the teacher stops by its probes)."""
-        if not len(self._held):
-            return None
-        sets, w = self.pool.tests, self.belief.weights
-        slots = sets.slot[self._held]
-        used = np.unique(slots[slots >= 0])
-        p = np.ones(len(slots))
-        if len(used):  # per distinct row set, in the order `study.live.held_out_p` uses
-            inc = sets.incidence[used]
-            cols = np.unique(inc.indices)
-            broken = (sets.rows[cols] @ self.belief.particles.T < -1e-9).astype(np.float32)
-            sat = np.asarray(inc[:, cols] @ broken) == 0
-            p_set = dict(zip(used.tolist(), (sat.astype(float) @ w).tolist(), strict=True))
-            p = np.array([p_set[int(k)] if k >= 0 else 1.0 for k in slots.tolist()])
-        return float(p.mean())
+        held-out tests; the study exports it). For analysis only: no decision reads it."""
+        return self.pool.held_out_mass(self.belief.particles, self.belief.weights)
 
     def prediction(self) -> dict[str, float | None]:
         """The belief's mean P(optimal) on the teacher's probes (`predicted`, with the
@@ -233,24 +261,26 @@ class ClosedLoopTeacher:
 
     def progress(self) -> float:
         """Share of the session done, for a progress bar: grows with every item (towards
-        1 at `max_items`) and jumps ahead as the probes' knowledge nears the stop; 1 when
-        done. A pure function of the items and the belief after each."""
+        1 at `max_items`), jumping ahead as the probes' knowledge nears the stop (not on a
+        failed test: `_settle`); 1 when done. A function of the items and the beliefs."""
+        if self._unsettled is not None and self._unsettled[1].correct:
+            self._settle()
         return 1.0 if self.done else self._progress[-1]
 
-    def _next_progress(self) -> float:
+    def _step_progress(self) -> float:
+        """The progress after one more item, knowledge aside: an equal share of what is left."""
         prev = self._progress[-1]
         left = max(self.settings.max_items - len(self.items) + 1, 1)
-        step = prev + (1.0 - prev) / left
+        return prev + (1.0 - prev) / left
+
+    def _next_progress(self) -> float:
         know = self.knowledge()
         ahead = 0.0 if know is None else min(0.95, know / self.settings.stop_threshold)
-        return float(min(1.0, max(step, ahead)))
+        return float(min(1.0, max(self._step_progress(), ahead)))
 
     def counts(self) -> dict[str, int]:
         """Items shown so far by kind."""
-        out = dict.fromkeys(KINDS, 0)
-        for it in self.items:
-            out[it.kind] += 1
-        return out
+        return {kind: sum(it.kind == kind for it in self.items) for kind in KINDS}
 
     def state_dict(self) -> dict[str, Any]:
         """Everything that defines the session (for equality checks and logs)."""
@@ -267,23 +297,17 @@ class ClosedLoopTeacher:
 
     def _since_test(self) -> int | None:
         """Items shown since the last test (None before the first test)."""
-        for back, it in enumerate(reversed(self.items)):
-            if it.kind == "test":
-                return back
-        return None
+        return next((b for b, it in enumerate(reversed(self.items)) if it.kind == "test"), None)
 
     def _decide(self) -> Item | None:
-        """The next item (docs/closed-loop.md, "The conversation"): feedback after a failed
-        test; a diagnostic test after a lesson; a test at least every `test_every` items
+        """The next item but feedback (docs/closed-loop.md, "The conversation"): a
+        diagnostic test after a lesson; a test at least every `test_every` items
         after the first; else stop when the probes say so, or a lesson; when no lesson
         would cut the belief, a test, or stop. Never the same lesson more than
         `max_repeat` times in a row."""
         st = self.settings
+        self._settle()
         last = self.items[-1] if self.items else None
-        k = len(self.items)
-        if last is not None and last.kind == "test" and not self.outcomes[last.index].correct:
-            return Item(k, "feedback", "feedback", last.demo, about=last.index,
-                        answer=self.responses[-1])
         if last is not None and last.kind == "demonstration":
             diag = self._diagnostic(last)
             if diag is not None:

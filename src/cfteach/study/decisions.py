@@ -6,9 +6,12 @@ worker, any server process, and any retry gets the same item: nothing here is th
 copy of anything. Sessions are routed to a fixed worker (`pk % workers`), so each worker
 keeps the teachers of its own sessions warm (`cfteach.study.live.LiveTeaching`), and after
 an item whose response is known in advance (a demonstration or feedback: ``{}``) the item
-after it is decided ahead, in the same worker. Each worker takes the decisions a page is
-waiting for before the ones made ahead (`DecisionLane`): when many participants answer a
-test at once, their next items are not queued behind items nobody has reached yet.
+after it is decided ahead, in the same worker. A failed answer's decision is its feedback,
+chosen before the answer's belief update (`ClosedLoopTeacher._settle`): the update runs in
+the decision made ahead, while the participant studies the feedback. Each worker takes the
+decisions a page is waiting for before the ones made ahead (`DecisionLane`): when many
+participants answer a test at once, their next items are not queued behind items nobody
+has reached yet.
 
 Why processes: a decision is ~0.1 s of numpy and Python on one core. In threads of the web
 server it holds the interpreter, and every other request waits behind it (the third-pass

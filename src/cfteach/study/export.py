@@ -113,8 +113,9 @@ COLUMNS: dict[str, list[tuple[str, str, str]]] = {
         ("optimal_reward", "float", "test: reward of the robot's optimal answer"),
         ("regret", "float", "test: optimal_reward - reward (0 when optimal)"),
         ("optimal", "0/1", "test: 1 if reward equals optimal_reward within 1e-9"),
-        ("expected_area", "float", "the teacher's belief when the item was chosen: expected "
-                                   "area of the learner's posterior (sr)"),
+        ("expected_area", "float", "the teacher's belief when the item was chosen (feedback: "
+                                   "before the failed answer's update): expected area of "
+                                   "the learner's posterior (sr)"),
         ("predicted_optimal", "float", "test: the belief's P(optimal answer) to this test"),
         ("predicted_held_out", "float", "the belief's mean P(optimal) on the post-teaching "
                                         "tests when the item was chosen"),

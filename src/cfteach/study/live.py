@@ -18,10 +18,7 @@ import zlib
 from collections import OrderedDict
 from typing import Any
 
-import numpy as np
-
 from cfteach.closedloop import ClosedLoopTeacher, LessonPool, TeacherSettings, build_pool
-from cfteach.closedloop.pool import SATISFIED_TOL
 from cfteach.closedloop.teacher import Item
 from cfteach.jsonable import to_jsonable
 
@@ -163,32 +160,15 @@ def _decided(t: ClosedLoopTeacher) -> tuple[Item | None, dict | None]:
 
 
 def item_summary(t: ClosedLoopTeacher, item: Item) -> dict:
-    """The belief summary stored with an item when it is chosen."""
-    return {"expected_area": float(t.belief.expected_area()),
+    """The belief summary stored with an item when it is chosen. Feedback is chosen before
+    the failed answer's update (`ClosedLoopTeacher.as_chosen`), so its summary is the
+    belief as the answer arrived, and the update runs in the decision made ahead, while the
+    participant studies the feedback."""
+    pool, belief = t.as_chosen
+    return {"expected_area": float(belief.expected_area()),
             "predicted_optimal": item.predicted_optimal,
-            "predicted_held_out": held_out_p(t),
+            "predicted_held_out": pool.held_out_mass(belief.particles, belief.weights),
             "progress": float(t.progress())}
-
-
-def held_out_p(t: ClosedLoopTeacher) -> float | None:
-    """`t.predicted_held_out()`, asking the particles about the held-out tests' rows only
-    (a few dozen of the pool's rows instead of all of them)."""
-    held = np.array(sorted(t.pool.held_out), dtype=np.int64)
-    if not len(held):
-        return None
-    tests = t.pool.tests
-    slots = tests.slot[held]
-    used = np.unique(slots[slots >= 0])
-    p = np.ones(len(held))
-    if len(used):
-        inc = tests.incidence[used]
-        cols = np.unique(inc.indices)
-        broken = (tests.rows[cols] @ t.belief.particles.T < -SATISFIED_TOL).astype(np.float32)
-        sat = np.asarray(inc[:, cols] @ broken) == 0  # [k, P]
-        p_set = dict(zip(used.tolist(), (sat.astype(float) @ t.belief.weights).tolist(),
-                         strict=True))
-        p = np.array([p_set[int(k)] if k >= 0 else 1.0 for k in slots])
-    return float(p.mean())
 
 
 def game_from_batch(ds: Any, demo: int) -> dict:  # noqa: ANN401 - a DemoSet
