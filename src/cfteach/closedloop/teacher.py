@@ -60,10 +60,10 @@ class ClosedLoopTeacher:
         st = self.settings
         prior = np.asarray(self.pool.domain.prior).reshape(-1, ds.F)
         if st.model == "noisy":
-            self._belief = NoisyBelief(prior, ds.F, n_particles=st.n_particles,
-                                       seed=self.seed, rationality=st.rationality,
-                                       uptake=st.uptake, disengaged=st.disengaged,
-                                       confused=st.confused, lapse=st.lapse)
+            self._belief: ParticleBelief = NoisyBelief(
+                prior, ds.F, n_particles=st.n_particles, seed=self.seed,
+                rationality=st.rationality, uptake=st.uptake, disengaged=st.disengaged,
+                confused=st.confused, lapse=st.lapse)
         else:
             self._belief = ParticleBelief(prior, ds.F, n_particles=st.n_particles,
                                           seed=self.seed, p_learn=st.p_learn,
