@@ -1,13 +1,15 @@
-"""The noisy belief's fast answer term gives the long way's numbers bit for bit
+"""The noisy belief's fast answer term gives the long way's numbers bit for bit, and both
+agree with an independent log-softmax (scipy) mixed with the lapse by hand
 (docs/closed-loop.md, "Speed")."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.special import log_softmax, logsumexp
 
 from cfteach.closedloop.noisy_belief import NoisyBelief
-from cfteach.closedloop.steps import taken_actions
+from cfteach.closedloop.steps import log_normaliser, taken_actions
 
 
 @pytest.mark.parametrize("lapse", [0.0, 0.01, 0.3])
@@ -27,3 +29,31 @@ def test_taken_log_policy_matches_full_policy_bit_for_bit(lapse: float) -> None:
     fast = belief._taken_log_policy(x, beta, counts, taken_actions(counts))
     slow = (belief._log_policy(x, beta) * counts[None]).sum(2)
     assert fast.tobytes() == slow.tobytes()
+
+
+@pytest.mark.parametrize("scale", [0.3, 50.0, 2000.0])
+def test_log_normaliser_matches_scipy_logsumexp_without_overflow(scale: float) -> None:
+    rng = np.random.default_rng(5)
+    logits = rng.normal(size=(30, 17, 6)) * scale
+    ours = log_normaliser(logits)
+    assert np.isfinite(ours).all()
+    np.testing.assert_allclose(ours, logsumexp(logits, axis=2), rtol=1e-13, atol=1e-12)
+
+
+@pytest.mark.parametrize("lapse", [0.0, 0.05])
+def test_log_policy_matches_log_softmax_with_lapse_by_hand(lapse: float) -> None:
+    rng = np.random.default_rng(7)
+    P, G, A = 50, 12, 4
+    belief = NoisyBelief(np.zeros((0, 3)), 3, n_particles=P, seed=0, lapse=lapse,
+                         n_reference=10)
+    x = rng.normal(size=(P, G, A)) * 3.0
+    beta = rng.choice(belief.grids["beta"], size=P)
+    logpi = log_softmax(beta[:, None, None] * x, axis=2)
+    expected = np.log((1 - lapse) * np.exp(logpi) + lapse / A) if lapse else logpi
+    np.testing.assert_allclose(belief._log_policy(x, beta), expected, rtol=1e-12, atol=1e-12)
+    # One action taken in every state: the fast path that neither copies x nor goes the
+    # long way for any state.
+    counts = np.zeros((G, A))
+    counts[np.arange(G), rng.integers(0, A, G)] = rng.integers(1, 4, G)
+    fast = belief._taken_log_policy(x, beta, counts, taken_actions(counts))
+    np.testing.assert_allclose(fast, (expected * counts[None]).sum(2), rtol=1e-12, atol=1e-12)

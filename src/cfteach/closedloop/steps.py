@@ -59,6 +59,23 @@ class StepData:
                 "alt": self.alt, "alt_action": self.alt_action}
 
 
+def log_normaliser(logits: np.ndarray) -> np.ndarray:
+    """``log sum_a exp(logits[p, g, a])`` ``[P, G]``: the largest logit taken out first (no
+    overflow), then one vectorised exp per action slice. `np.logaddexp.reduce` over the
+    short last axis gives the same numbers to about 1e-14 but costs a scalar exp and log1p
+    per element, in a strided loop: this is the answer term's whole cost, 2-3x less here."""
+    top = logits[:, :, 0].copy()
+    for a in range(1, logits.shape[2]):
+        np.maximum(top, logits[:, :, a], out=top)
+    total = np.zeros_like(top)
+    term = np.empty_like(top)
+    for a in range(logits.shape[2]):
+        np.subtract(logits[:, :, a], top, out=term)
+        np.exp(term, out=term)
+        total += term
+    return top + np.log(total)
+
+
 def taken_actions(counts: np.ndarray) -> tuple[np.ndarray, ...]:
     """The states of `counts` ``[G, A]`` where one action was taken (state, action, count)
     and those where several were (`NoisyBelief._taken_log_policy`)."""
