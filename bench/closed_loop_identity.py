@@ -1,11 +1,14 @@
 """Record whole closed-loop sessions and compare two recordings bit for bit: a speed change
 to the teacher or its belief must leave every item, particle, weight and grid index as it
-was (docs/closed-loop.md, "Speed").
+was (docs/closed-loop.md, "Speed"). With `--tolerance T` floating-point values need only
+agree within T (absolute and relative), for a change that reorders arithmetic; items, stop
+reasons, grid indices and every other non-float value must still be equal.
 
     .venv/bin/python bench/closed_loop_identity.py record before.pkl
     ...change the code...
     .venv/bin/python bench/closed_loop_identity.py record after.pkl
     .venv/bin/python bench/closed_loop_identity.py compare before.pkl after.pkl
+    .venv/bin/python bench/closed_loop_identity.py compare --tolerance 1e-9 before.pkl after.pkl
 
 Sessions: every domain of `--domains` x learner kind of `--learners` x `--seeds` teacher
 seeds, on a pool with `proposed`'s curriculum as its backbone (as the simulation's);
@@ -63,14 +66,20 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
-def _same(a: Any, b: Any) -> bool:
+def _same(a: Any, b: Any, tol: float = 0.0) -> bool:
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         a, b = np.asarray(a), np.asarray(b)
-        return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+        if a.shape != b.shape or a.dtype != b.dtype:
+            return False
+        if tol and a.dtype.kind == "f":
+            return bool(np.allclose(a, b, rtol=tol, atol=tol, equal_nan=True))
+        return a.tobytes() == b.tobytes()
     if isinstance(a, dict) and isinstance(b, dict):
-        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+        return a.keys() == b.keys() and all(_same(a[k], b[k], tol) for k in a)
     if isinstance(a, list | tuple) and isinstance(b, list | tuple):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+        return len(a) == len(b) and all(_same(x, y, tol) for x, y in zip(a, b, strict=True))
+    if tol and isinstance(a, float) and isinstance(b, float):
+        return abs(a - b) <= tol * (1 + abs(b))
     return bool(a == b)
 
 
@@ -82,6 +91,8 @@ def main() -> None:
     ap.add_argument("--learners", default="inattentive,noisy")
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--teacher", default="")
+    ap.add_argument("--tolerance", type=float, default=0.0,
+                    help="compare: floats within this (absolute and relative); 0 = bit for bit")
     args = ap.parse_args()
     if args.mode == "record":
         with open(args.files[0], "wb") as fh:
@@ -90,7 +101,8 @@ def main() -> None:
     if len(args.files) != 2:
         sys.exit("compare: give two recordings")
     a, b = (pickle.load(open(f, "rb")) for f in args.files)  # noqa: SIM115
-    bad = [k for k in sorted(set(a) | set(b)) if k not in a or k not in b or not _same(a[k], b[k])]
+    bad = [k for k in sorted(set(a) | set(b))
+           if k not in a or k not in b or not _same(a[k], b[k], args.tolerance)]
     print(f"{len(a)} and {len(b)} sessions; {len(bad)} differ" + (f": {bad}" if bad else ""))
     sys.exit(1 if bad else 0)
 
