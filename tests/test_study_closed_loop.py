@@ -454,3 +454,50 @@ def test_progress_moves_with_every_item_and_is_the_teachers_own(cl_study: Path,
     offline = ClosedLoopTeacher.replay(pool_from_cell(cell), responses,
                                        settings=settings_of(cell), seed=_teacher_seed(app, who))
     assert shown == pytest.approx(offline.state_dict()["progress"][:len(shown)])
+
+
+def test_a_replay_that_would_serve_other_items_ends_teaching_not_misreads_answers(
+        cl_study: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """The teacher is rebuilt from the stored answers; if the rebuilt teacher would have
+    served other items than the stored ones (the code changed under a running study), its
+    next item would read answers to items the participant never saw. The server ends that
+    domain's teaching instead, and says why in its log."""
+    from sqlalchemy import select
+
+    from cfteach.study.models import ClosedLoopItem, Session
+
+    app = create_app(cl_study, f"sqlite:///{tmp_path / 'mismatch.db'}", seed=5)
+    client, who = _closed_loop_client(app)
+    with client:
+        start = who.to_closed_loop()
+        first = who.ready()["step"]["item"]
+        assert first["kind"] == "demonstration" and first["position"] == 0
+        who.send("demo_play_start", {"demo_index": 0})
+        who.send("demo_play_end", {"demo_index": 0, "completed": True, "watch_ms": 50})
+        assert who.send("item_done", {"item": 0}).status_code == 200
+        second = who.ready()["step"]["item"]
+        assert second["position"] == 1
+        service = app.state.service
+        with service.Session() as db, db.begin():  # as if an older version had served it
+            pk = db.scalar(select(Session.id).where(Session.token == who.h["X-Session-Token"]))
+            stored = db.scalar(select(ClosedLoopItem).where(ClosedLoopItem.session_pk == pk,
+                                                            ClosedLoopItem.position == 0))
+            stored.demo += 1
+        service.live._teachers.clear()
+        if second["kind"] == "test":
+            r = who.send("item_done", {"item": 1, "actions": shortest_path(second["game"]),
+                                       "time_ms": 5})
+        else:
+            who.send("demo_play_start", {"demo_index": 0})
+            who.send("demo_play_end", {"demo_index": 0, "completed": True, "watch_ms": 50})
+            r = who.send("item_done", {"item": 1})
+        assert r.status_code == 200, r.text
+        after = who.c.get("/api/state", headers=who.h, params={"wait": 5}).json()
+        with service.Session() as db:
+            positions = list(db.scalars(select(ClosedLoopItem.position).where(
+                ClosedLoopItem.session_pk == pk)))
+    assert after["step_index"] == start["step_index"] + 1
+    assert after["step"]["kind"] != "closed_loop"
+    assert sorted(positions) == [0, 1]  # no item decided from the misread answers
+    assert any("item 0" in rec.getMessage() and rec.levelname == "ERROR"
+               for rec in caplog.records)

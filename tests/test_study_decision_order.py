@@ -20,7 +20,7 @@ class _Live:
         self.gate, self.order, self.kind = threading.Event(), [], kind
         self._lock = threading.Lock()
 
-    def decide(self, study, pk, seed, domain, responses):
+    def decide(self, study, pk, seed, domain, responses, served=None):
         if not self.order:
             self.gate.wait(30)
         with self._lock:

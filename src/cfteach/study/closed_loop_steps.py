@@ -9,6 +9,7 @@ item"); ``GET /api/state?wait=S`` waits up to S seconds for it.
 
 from __future__ import annotations
 
+import logging
 from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
@@ -31,6 +32,8 @@ from .queries import PENDING_ITEM
 if TYPE_CHECKING:
     from .decisions import Decider
     from .live import LiveTeaching
+
+log = logging.getLogger(__name__)
 
 #: How soon the page should ask again while an item is being prepared (ms).
 RETRY_MS = 250
@@ -134,14 +137,19 @@ class ClosedLoopSteps:
             return None
         return {"pk": row.id, "seed": row.seed, "version": row.study_version,
                 "domain": step["domain"], "step_index": row.step_index,
-                "responses": responses_of(self._cl_stored(db, row, row.step_index))}
+                "responses": responses_of(self._cl_stored(db, row, row.step_index)),
+                "served": [[k, d] for k, d in db.execute(
+                    select(ClosedLoopItem.kind, ClosedLoopItem.demo).where(
+                        ClosedLoopItem.session_pk == row.id,
+                        ClosedLoopItem.domain == step["domain"])
+                    .order_by(ClosedLoopItem.position))]}
 
     def _cl_ensure(self, job: dict, wait: float) -> bool:
         """Submit the decision `job` names (once) and record it if it is ready within
         `wait` s; True if recorded (by us or by anyone else)."""
         study = self._studies[job["version"]]
         fut = self.decider.submit(study, job["pk"], job["seed"], job["domain"],
-                                  job["responses"])
+                                  job["responses"], job.get("served"))
         done, result = result_or_none(fut, wait)
         if not done:
             self.decider.heal(fut)
@@ -170,6 +178,13 @@ class ClosedLoopSteps:
                     if n != len(job["responses"]):
                         return False  # answered since: a newer decision is needed
                     now = utcnow()
+                    if result is not None and "mismatch" in result:
+                        # never decide from answers to items the participant did not see:
+                        # this domain's teaching ends here, loudly (docs/study.md)
+                        log.error("closed_loop session %s, %s: %s; its teaching phase "
+                                  "ends here", row.participant_id, job["domain"],
+                                  result["mismatch"])
+                        result = None
                     if result is None:
                         self._advance(db, row, now)
                         return True

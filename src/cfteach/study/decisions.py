@@ -33,7 +33,7 @@ from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPool
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
-from .live import LiveTeaching
+from .live import LiveTeaching, ReplayMismatch
 from .livesrv import settle_heap
 
 #: Futures kept for lookup (the in-flight and recently finished decisions).
@@ -83,17 +83,23 @@ def _ready() -> bool:
 
 
 def decide_job(study: dict, session_pk: int, seed: int, domain: str,
-               responses: list[dict]) -> dict | None:
+               responses: list[dict], served: list[list] | None = None) -> dict | None:
     """The item after `responses` as plain data (None: teaching is over). Runs in a worker."""
     live = _WORKER_LIVE
     if live is None:  # first use in this process (the in-process thread mode)
         raise RuntimeError("decision worker not initialised")
-    return _decide(live, study, session_pk, seed, domain, responses)
+    return _decide(live, study, session_pk, seed, domain, responses, served)
 
 
 def _decide(live: LiveTeaching, study: dict, session_pk: int, seed: int, domain: str,
-            responses: list[dict]) -> dict | None:
-    item, summary = live.decide(study, session_pk, seed, domain, responses)
+            responses: list[dict], served: list[list] | None = None) -> dict | None:
+    """The item after `responses`; ``{"mismatch": why}`` when the teacher rebuilt from them
+    would have served other items than `served` (a result, not a failure: retrying would
+    replay the same answers to the same end)."""
+    try:
+        item, summary = live.decide(study, session_pk, seed, domain, responses, served)
+    except ReplayMismatch as e:
+        return {"mismatch": str(e), "responses": len(responses)}
     if item is None:
         return None
     return {"index": int(item.index), "kind": item.kind, "purpose": item.purpose,
@@ -243,10 +249,12 @@ class Decider:
             lane.close()
 
     def submit(self, study: dict, session_pk: int, seed: int, domain: str,
-               responses: list[dict], *, urgent: bool = True) -> Future:
+               responses: list[dict], served: list[list] | None = None, *,
+               urgent: bool = True) -> Future:
         """The decision after `responses` (stored events are append-only, so their count
         names them); submitted once, and again only if it failed. `urgent`: a page waits
-        for it (an ahead decision is not urgent until a page asks for it)."""
+        for it (an ahead decision is not urgent until a page asks for it). `served`: the
+        stored items the responses answer, checked against the teacher's replay."""
         key = (study["version"], session_pk, domain, len(responses))
         with self._lock:
             fut = self._futures.get(key)
@@ -254,34 +262,37 @@ class Decider:
                 if urgent:
                     self._lane(session_pk).promote(fut)
                 return fut
-            fut = self._run(session_pk, self._job(study, session_pk, seed, domain, responses),
+            fut = self._run(session_pk,
+                            self._job(study, session_pk, seed, domain, responses, served),
                             urgent=urgent)
             self._futures[key] = fut
             if len(self._futures) > MAX_FUTURES:
                 for k in [k for k, f in self._futures.items() if f.done()][: MAX_FUTURES // 2]:
                     del self._futures[k]
 
-        def ahead() -> None:
+        def ahead(out: dict) -> None:
             # after a demonstration or feedback the response is known ({}): decide the item
             # after it now, in the same worker, so answering it finds the decision ready
-            self.submit(study, session_pk, seed, domain, [*responses, {}], urgent=False)
+            more = None if served is None else [*served, [out["kind"], out["demo"]]]
+            self.submit(study, session_pk, seed, domain, [*responses, {}], more, urgent=False)
 
         def done(f: Future) -> None:
             if f.cancelled() or f.exception() is not None:
                 return
             out = f.result()
-            if out is not None and out["kind"] != "test":
+            if out is not None and out.get("kind", "test") != "test":
                 with contextlib.suppress(RuntimeError):  # shutting down
-                    self._dispatch.submit(ahead)
+                    self._dispatch.submit(ahead, out)
 
         fut.add_done_callback(done)
         return fut
 
     def _job(self, study: dict, session_pk: int, seed: int, domain: str,
-             responses: list[dict]) -> tuple[Callable, tuple]:
+             responses: list[dict], served: list[list] | None) -> tuple[Callable, tuple]:
         if self.workers <= 0:
-            return _decide, (self.live, study, session_pk, seed, domain, responses)
-        return decide_job, (slim_study(study, domain), session_pk, seed, domain, responses)
+            return _decide, (self.live, study, session_pk, seed, domain, responses, served)
+        return decide_job, (slim_study(study, domain), session_pk, seed, domain, responses,
+                            served)
 
     def _lane(self, session_pk: int) -> DecisionLane:
         return self._lanes[session_pk % len(self._lanes)]

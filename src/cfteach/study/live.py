@@ -52,6 +52,26 @@ def pool_from_cell(cell: dict) -> LessonPool:
                       backbone=list(cell.get("backbone") or ()))
 
 
+class ReplayMismatch(ValueError):
+    """A teacher rebuilt from a session's answers would have served other items than the
+    ones stored (the code or its numerics changed under a running study): its next item
+    would be decided from answers to items the participant never saw."""
+
+
+def check_served(t: ClosedLoopTeacher, served: list[list]) -> None:
+    """Raise `ReplayMismatch` unless `t` served exactly `served` (``[kind, demo]`` per
+    answered item, in order, as stored)."""
+    got = [[it.kind, int(it.demo)] for it in t.items]
+    want = [[str(k), int(d)] for k, d in served]
+    if got != want:
+        at = next((k for k, (g, w) in enumerate(zip(got, want, strict=False)) if g != w),
+                  min(len(got), len(want)))
+        g = got[at] if at < len(got) else None
+        w = want[at] if at < len(want) else None
+        raise ReplayMismatch(f"item {at}: the teacher rebuilt from the answers serves {g}, "
+                             f"but {w} was stored")
+
+
 def responses_of(payloads: list[dict]) -> list[dict[str, Any]]:
     """Teacher responses from stored `item_done` payloads, in order."""
     return [{"actions": list(p["actions"])} if p.get("actions") is not None else {}
@@ -100,11 +120,13 @@ class LiveTeaching:
             return self._locks.setdefault((session_pk, domain), threading.Lock())
 
     def teacher(self, study: dict, session_pk: int, session_seed: int, domain: str,
-                responses: list[dict]) -> ClosedLoopTeacher:
+                responses: list[dict], served: list[list] | None = None) -> ClosedLoopTeacher:
         """The teacher that has seen exactly `responses` (hold `session_lock` around its use).
 
         A cached teacher whose responses are a prefix of these is brought up to date; any
-        other is ignored, and the session is replayed from the responses.
+        other is ignored, and the session is replayed from the responses. With `served`
+        (the stored items, ``[kind, demo]`` each), a teacher that would have served others
+        raises `ReplayMismatch` and is not kept.
         """
         key = (session_pk, domain)
         with self._lock:
@@ -124,6 +146,8 @@ class LiveTeaching:
             for r in responses[len(best.responses):]:
                 best.next()
                 best.observe(r)
+        if served is not None:
+            check_served(best, served)
         self._remember(key, best)
         return best
 
@@ -136,11 +160,12 @@ class LiveTeaching:
                 self._locks.pop(old, None)
 
     def decide(self, study: dict, session_pk: int, session_seed: int, domain: str,
-               responses: list[dict]) -> tuple[Item | None, dict | None]:
+               responses: list[dict],
+               served: list[list] | None = None) -> tuple[Item | None, dict | None]:
         """The item after `responses` and the belief summary when it was chosen (both
         memoized on the teacher, so asking again costs nothing)."""
         with self.session_lock(session_pk, domain):
-            t = self.teacher(study, session_pk, session_seed, domain, responses)
+            t = self.teacher(study, session_pk, session_seed, domain, responses, served)
             item, summary = _decided(t)
             if item is not None and item.kind == "test":
                 self.game(study, domain, item.demo)  # the page's table, built now

@@ -198,7 +198,8 @@ class StudyService(PageViews, ClosedLoopSteps):
             if job is None:
                 return view
             fut = self.decider.submit(self._studies[job["version"]], job["pk"],
-                                      job["seed"], job["domain"], job["responses"])
+                                      job["seed"], job["domain"], job["responses"],
+                                      job.get("served"))
             done, result = await result_or_none_async(fut, wait)
             if not done:
                 if fut.done():
