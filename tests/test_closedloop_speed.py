@@ -12,14 +12,21 @@ from cfteach.closedloop.noisy_belief import NoisyBelief
 from cfteach.closedloop.steps import log_normaliser, taken_actions
 
 
+def _random_policy_inputs(seed: int, shape: tuple[int, int, int], lapse: float,
+                          scale: float) -> tuple[NoisyBelief, np.ndarray, np.ndarray]:
+    """A belief of `shape[0]` particles, `x = w . Psi` of `shape`, and a beta per particle."""
+    rng = np.random.default_rng(seed)
+    belief = NoisyBelief(np.zeros((0, 3)), 3, n_particles=shape[0], seed=0, lapse=lapse,
+                         n_reference=10)
+    x = rng.normal(size=shape) * scale
+    return belief, x, rng.choice(belief.grids["beta"], size=shape[0])
+
+
 @pytest.mark.parametrize("lapse", [0.0, 0.01, 0.3])
 def test_taken_log_policy_matches_full_policy_bit_for_bit(lapse: float) -> None:
     rng = np.random.default_rng(3)
     P, G, A = 200, 40, 5
-    belief = NoisyBelief(np.zeros((0, 3)), 3, n_particles=P, seed=0, lapse=lapse,
-                         n_reference=10)
-    x = rng.normal(size=(P, G, A)) * 0.3
-    beta = rng.choice(belief.grids["beta"], size=P)
+    belief, x, beta = _random_policy_inputs(3, (P, G, A), lapse, 0.3)
     counts = np.zeros((G, A))
     counts[np.arange(G), rng.integers(0, A, G)] = rng.integers(1, 4, G)
     counts[::7] += rng.integers(0, 2, (len(counts[::7]), A))  # states with several actions
@@ -42,12 +49,9 @@ def test_log_normaliser_matches_scipy_logsumexp_without_overflow(scale: float) -
 
 @pytest.mark.parametrize("lapse", [0.0, 0.05])
 def test_log_policy_matches_log_softmax_with_lapse_by_hand(lapse: float) -> None:
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(8)
     P, G, A = 50, 12, 4
-    belief = NoisyBelief(np.zeros((0, 3)), 3, n_particles=P, seed=0, lapse=lapse,
-                         n_reference=10)
-    x = rng.normal(size=(P, G, A)) * 3.0
-    beta = rng.choice(belief.grids["beta"], size=P)
+    belief, x, beta = _random_policy_inputs(7, (P, G, A), lapse, 3.0)
     logpi = log_softmax(beta[:, None, None] * x, axis=2)
     expected = np.log((1 - lapse) * np.exp(logpi) + lapse / A) if lapse else logpi
     np.testing.assert_allclose(belief._log_policy(x, beta), expected, rtol=1e-12, atol=1e-12)
