@@ -9,7 +9,7 @@ import pytest
 from scipy.special import log_softmax, logsumexp
 
 from cfteach.closedloop.noisy_belief import NoisyBelief
-from cfteach.closedloop.steps import log_normaliser, taken_actions
+from cfteach.closedloop.steps import StepData, distinct_steps, log_normaliser, taken_actions
 
 
 def _random_policy_inputs(seed: int, shape: tuple[int, int, int], lapse: float,
@@ -31,8 +31,8 @@ def test_taken_log_policy_matches_full_policy_bit_for_bit(lapse: float) -> None:
     counts[np.arange(G), rng.integers(0, A, G)] = rng.integers(1, 4, G)
     counts[::7] += rng.integers(0, 2, (len(counts[::7]), A))  # states with several actions
     counts[5] = 0                                              # a state never left
-    one_g, _, _, many_g = taken_actions(counts)
-    assert len(one_g) and len(many_g)
+    taken = taken_actions(counts)
+    assert len(taken.one) and len(taken.many)
     fast = belief._taken_log_policy(x, beta, counts, taken_actions(counts))
     slow = (belief._log_policy(x, beta) * counts[None]).sum(2)
     assert fast.tobytes() == slow.tobytes()
@@ -61,3 +61,35 @@ def test_log_policy_matches_log_softmax_with_lapse_by_hand(lapse: float) -> None
     counts[np.arange(G), rng.integers(0, A, G)] = rng.integers(1, 4, G)
     fast = belief._taken_log_policy(x, beta, counts, taken_actions(counts))
     np.testing.assert_allclose(fast, (expected * counts[None]).sum(2), rtol=1e-12, atol=1e-12)
+
+
+def test_answers_sharing_states_give_the_per_state_numbers() -> None:
+    """Answers that revisit states share their rows of ``x`` (`distinct_steps`); the answer
+    term is that of one row per state, checked against scipy's log-softmax."""
+    rng = np.random.default_rng(11)
+    P, A, F, lapse = 40, 4, 3, 0.02
+    base = rng.normal(size=(6, A, F))
+    entries = []
+    for n in (5, 4, 6):  # three answers drawing their states from six
+        pick = rng.integers(0, 6, n)
+        counts = np.zeros((n, A))
+        counts[np.arange(n), rng.integers(0, A, n)] = rng.integers(1, 3, n)
+        counts[0] += 1  # a state with several actions taken
+        e = {"rows": base[pick], "counts": counts}
+        if n == 4:  # a finished answer: a known plan for one action of some states
+            e["alt"], e["alt_action"] = rng.normal(size=(n, F)), np.array([1, -1, 0, -1])
+        entries.append(e)
+    points = rng.normal(size=(P, F))
+    points /= np.linalg.norm(points, axis=1, keepdims=True)
+    beta = rng.choice([5.0, 50.0], size=P)
+    distinct, group = distinct_steps(entries)
+    counts = np.concatenate([e["counts"] for e in entries])
+    assert len(distinct.rows) < len(counts)
+    belief = NoisyBelief(np.zeros((0, F)), F, n_particles=P, seed=0, lapse=lapse,
+                         n_reference=10)
+    shared = belief._taken_log_policy(distinct.x(points), beta, counts,
+                                      taken_actions(counts, group))
+    x = np.concatenate([StepData.of(e).x(points) for e in entries], axis=1)
+    pi = np.exp(log_softmax(beta[:, None, None] * x, axis=2))
+    expected = (np.log((1 - lapse) * pi + lapse / A) * counts[None]).sum(2)
+    np.testing.assert_allclose(shared, expected, rtol=1e-12, atol=1e-12)

@@ -61,7 +61,14 @@ from cfteach.closedloop.noisy_params import (
     UPTAKE,
     as_grid,
 )
-from cfteach.closedloop.steps import StepData, log_normaliser, taken_actions
+from cfteach.closedloop.steps import (
+    StepData,
+    Taken,
+    distinct_steps,
+    log_policy,
+    taken_actions,
+    taken_log_policy,
+)
 
 __all__ = ["NoisyBelief"]
 
@@ -117,16 +124,7 @@ class NoisyBelief(ParticleBelief):
     # ------------------------------------------------------------------ the policy
     def _log_policy(self, x: np.ndarray, beta: np.ndarray) -> np.ndarray:
         """``log pi(a | s)`` ``[P, G, A]`` from ``x = w . Psi(s, a)`` ``[P, G, A]``."""
-        logits = beta[:, None, None] * x
-        logp = logits - log_normaliser(logits)[:, :, None]
-        if self.lapse > 0:
-            logp = self._with_lapse(logp, x.shape[2])
-        return logp
-
-    def _with_lapse(self, logp: np.ndarray, n_actions: int) -> np.ndarray:
-        """``log((1 - lapse) * pi + lapse / A)`` from ``log pi`` (<= 0): vectorised exp and
-        log, a few times cheaper than `np.logaddexp` and as exact (``pi`` lies in [0, 1])."""
-        return np.log((1 - self.lapse) * np.exp(logp) + self.lapse / n_actions)
+        return log_policy(x, beta, self.lapse)
 
     def _follow(self, x: np.ndarray, beta: np.ndarray, optimal: np.ndarray,
                 test_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -305,15 +303,17 @@ class NoisyBelief(ParticleBelief):
             keep = sizes > 0
             counts = np.concatenate([e["counts"] for e in steps]) if keep.any() \
                 else np.zeros((0, self.dim))
-            x = np.concatenate([StepData.of(e).x(points) for e in steps if len(e["rows"])],
-                               axis=1) if keep.any() else None
+            # x once per distinct group: answers revisit the same states
+            distinct, group = (distinct_steps([e for e in steps if len(e["rows"])])
+                               if keep.any() else (None, None))
+            x = distinct.x(points) if distinct is not None else None
             # An answer with no moves has likelihood 1 under either share of an attempt.
             conf = [e.get("confused_ll", None if len(e["rows"])
                           else np.zeros(len(self.grids["beta"]))) for e in steps]
             out["steps"] = {
                 "confused_ll": (np.array(conf) if conf and all(c is not None for c in conf)
                                 else None),
-                "counts": counts, "x": x, "taken": taken_actions(counts),
+                "counts": counts, "x": x, "taken": taken_actions(counts, group),
                 "starts": np.concatenate([[0], np.cumsum(sizes[keep])[:-1]]).astype(np.int64),
                 "keep": keep, "n_moves": np.array([e["counts"].sum() for e in steps])}
         out["outcomes"] = [(e, StepData.of(e).x(points), _sat(points, e["region"]))
@@ -334,27 +334,9 @@ class NoisyBelief(ParticleBelief):
         return pol
 
     def _taken_log_policy(self, x: np.ndarray, beta: np.ndarray, counts: np.ndarray,
-                          taken: tuple[np.ndarray, ...]) -> np.ndarray:
-        """``[P, G]``: ``sum_a counts[g, a] * log pi(a | s_g)``, the same numbers as
-        ``(self._log_policy(x, beta) * counts).sum(2)`` (bit for bit) at a fraction of the
-        cost: the lapse mixture only at the actions taken in a state where one action was
-        taken (the other terms are zeros); states with several actions taken go the long
-        way."""
-        one_g, one_a, one_c, many_g = taken
-        out = np.empty(x.shape[:2])
-        if len(one_g):
-            # `one_g` is sorted: all of the states means no copy of x.
-            logits = beta[:, None, None] * (x if len(one_g) == x.shape[1] else x[:, one_g, :])
-            logp = logits[:, np.arange(len(one_g)), one_a] - log_normaliser(logits)
-            if self.lapse > 0:
-                logp = self._with_lapse(logp, x.shape[2])
-            if not len(many_g):
-                return logp * one_c[None]
-            out[:, one_g] = logp * one_c[None]
-        if len(many_g):
-            out[:, many_g] = (self._log_policy(x[:, many_g], beta)
-                              * counts[many_g][None]).sum(2)
-        return out
+                          taken: Taken) -> np.ndarray:
+        """``[P, G]``: ``sum_a counts[g, a] * log pi(a | s_g)`` (`steps.taken_log_policy`)."""
+        return taken_log_policy(x, beta, counts, taken, self.lapse)
 
     def _posterior_from(self, parts: dict[str, Any], idx: dict[str, np.ndarray],
                         pol: np.ndarray | None = None) -> np.ndarray:
