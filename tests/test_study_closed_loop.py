@@ -20,7 +20,7 @@ from cfteach.study import create_app, export_csv, load_study
 from cfteach.study.bot import run_participant
 from cfteach.study.build import init_study, preview_sources, toy_sources
 from cfteach.study.games import shortest_path
-from cfteach.study.live import pool_from_cell, settings_of
+from cfteach.study.live import ReplayMismatch, pool_from_cell, replay_export, settings_of
 from cli_runner import WideRunner
 
 TEACHER = {"n_particles": 300, "max_items": 10}
@@ -229,6 +229,14 @@ def test_closed_loop_session_items_and_export_replay(cl_study: Path, tmp_path: P
                                                              int(r["env_index"]))
         assert shown["start_state"] == json.loads(r["start_state"])
     assert t.next() is None  # teaching had ended: the participant moved on
+    # the same, checked by the library; an export whose items this code would not serve
+    # (another cfteach ran the study) is refused, naming the first item that differs
+    assert [it.demo for it in replay_export(cell, mine).items] == [it.demo for it in t.items]
+    other = [dict(r) for r in mine]
+    k = next(i for i, r in enumerate(other) if r["kind"] == "demonstration")
+    other[k]["env_index"] = str(int(other[k]["env_index"]) + 1)
+    with pytest.raises(ReplayMismatch, match=f"item {k}:"):
+        replay_export(cell, other)
     parts = {p["participant_id"]: p for p in _rows(tmp_path / "out" / "participants.csv")}
     assert parts[pid]["condition"] == "closed_loop" and parts[pid]["counterfactual"] == "1"
 

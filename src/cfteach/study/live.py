@@ -13,6 +13,7 @@ worker; deciding ahead (the item after a demonstration or feedback) is the Decid
 
 from __future__ import annotations
 
+import json
 import threading
 import zlib
 from collections import OrderedDict
@@ -70,6 +71,27 @@ def check_served(t: ClosedLoopTeacher, served: list[list]) -> None:
         w = want[at] if at < len(want) else None
         raise ReplayMismatch(f"item {at}: the teacher rebuilt from the answers serves {g}, "
                              f"but {w} was stored")
+
+
+def replay_export(cell: dict, rows: list[dict[str, str]]) -> ClosedLoopTeacher:
+    """Rebuild one participant's teacher in one domain offline from the study file's
+    `closed_loop` cell and their rows of `closed_loop_items.csv` (in position order), and
+    check it served those items (kind, purpose, instance, start state): `ReplayMismatch`
+    names the first that differs, e.g. when this cfteach is not the one that ran the
+    study, instead of a teacher silently rebuilt from answers to other items."""
+    pool = pool_from_cell(cell)
+    responses = [{"actions": r["actions"].split()} if r["kind"] == "test" else {}
+                 for r in rows]
+    t = ClosedLoopTeacher.replay(pool, responses, settings=settings_of(cell),
+                                 seed=int(rows[0]["teacher_seed"]) if rows else 0)
+    for k, (it, r) in enumerate(zip(t.items, rows, strict=True)):
+        shown = it.to_json(pool)
+        got = (it.kind, it.purpose, shown["env_index"], shown["start_state"])
+        want = (r["kind"], r["purpose"], int(r["env_index"]), json.loads(r["start_state"]))
+        if got != want:
+            raise ReplayMismatch(f"item {k}: the teacher rebuilt from the answers serves "
+                                 f"{got[:3]}, but the export has {want[:3]}")
+    return t
 
 
 def responses_of(payloads: list[dict]) -> list[dict[str, Any]]:
