@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 SERVER = """
 import sys, time
 from cfteach.study.decisions import Decider
@@ -58,6 +60,29 @@ def test_workers_decide_at_a_lower_os_priority() -> None:
         d.close()
     server = os.nice(0)
     assert worker > server or server == 19
+
+
+def _blas_threads() -> list[int]:
+    from threadpoolctl import threadpool_info
+
+    return [int(p["num_threads"]) for p in threadpool_info() if p["user_api"] == "blas"]
+
+
+def test_workers_run_blas_on_one_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Idle OpenBLAS threads spin: with one per core in every worker, decisions cost ~10x
+    their CPU (docs/study.md, "Load"). Asked for 4 threads by the environment, as a
+    four-core machine would give them, each worker still runs BLAS on one."""
+    from cfteach.study.decisions import WORKER_BLAS_THREADS, Decider
+    from cfteach.study.live import LiveTeaching
+
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "4")  # inherited by the spawned workers
+    d = Decider(LiveTeaching(), [], 1)
+    try:
+        threads = d._executors[0].submit(_blas_threads).result(timeout=120)
+    finally:
+        d.close()
+    assert threads, "numpy's BLAS not found in the worker"
+    assert threads == [WORKER_BLAS_THREADS] * len(threads)
 
 
 def test_workers_keep_their_start_up_objects_out_of_garbage_collection() -> None:

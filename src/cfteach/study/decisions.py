@@ -33,6 +33,8 @@ from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPool
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
+from threadpoolctl import threadpool_limits
+
 from .live import LiveTeaching, ReplayMismatch
 from .livesrv import settle_heap
 
@@ -42,6 +44,12 @@ MAX_FUTURES = 4096
 WARM_TIMEOUT_S = 600.0
 #: Seconds between a worker's checks that its server is still there.
 PARENT_CHECK_S = 1.0
+#: BLAS threads per decision worker. OpenBLAS starts one thread per core in every process,
+#: and its idle threads spin while they wait for work: two workers and a web server on two
+#: cores, each with such threads, spent ~50 ms of CPU per decision that takes ~4 ms on one
+#: thread (measured with 20 skateboard sessions through `Decider`, docs/study.md "Load").
+#: A decision's matrices (particles x features) are far too small to gain from threads.
+WORKER_BLAS_THREADS = 1
 #: How much lower than its server a decision worker runs (os.nice). On a saturated machine
 #: the server's event and page requests (a few ms each) then win the CPU, and decisions
 #: (tens of ms each, which the page already waits for behind "preparing") take what is left.
@@ -72,6 +80,7 @@ def _worker_init(studies: list[dict]) -> None:
     global _WORKER_LIVE
     threading.Thread(target=_exit_with, args=(os.getppid(),), daemon=True).start()
     os.nice(DECISION_NICE)
+    threadpool_limits(limits=WORKER_BLAS_THREADS)  # for the life of the process
     _WORKER_LIVE = LiveTeaching()
     for s in studies:
         _WORKER_LIVE.warm(s)
