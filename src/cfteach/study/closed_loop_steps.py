@@ -29,6 +29,9 @@ from .live import path_states, responses_of
 from .models import ClosedLoopItem, Event, Session, aware, utcnow
 from .queries import PENDING_ITEM
 
+#: Where a transaction keeps the item on screen (`_cl_pending`), in its session's `info`.
+PENDING_KEY = "cfteach.pending_item"
+
 if TYPE_CHECKING:
     from .decisions import Decider
     from .live import LiveTeaching
@@ -63,8 +66,16 @@ class ClosedLoopSteps:
             Event.type == "item_done").order_by(Event.seq)))
 
     def _cl_pending(self, db: DBSession, row: Session, step: dict) -> ClosedLoopItem | None:
-        """The item on screen: the first one without an answer."""
-        return db.scalar(PENDING_ITEM, {"pk": row.id, "domain": step["domain"]})
+        """The item on screen: the first one without an answer.
+
+        Looked up once per transaction (an event's checks, its page and the decision that
+        page waits for each ask): on PostgreSQL every lookup is a round trip, and round trips,
+        not CPU, made most of an event's time (docs/study.md, "Load"). An answer recorded in
+        the transaction forgets it (`_cl_item_done`)."""
+        key = (PENDING_KEY, row.id, step["domain"])
+        if key not in db.info:
+            db.info[key] = db.scalar(PENDING_ITEM, {"pk": row.id, "domain": step["domain"]})
+        return db.info[key]
 
     def _cl_item(self, db: DBSession, row: Session, domain: str,
                  position: int | None) -> ClosedLoopItem | None:
@@ -123,8 +134,11 @@ class ClosedLoopSteps:
         return item, {}
 
     @staticmethod
-    def _cl_item_done(item: ClosedLoopItem, answer: dict[str, Any], now: datetime) -> None:
-        """Record a checked answer (`_cl_check_answer`) on its item."""
+    def _cl_item_done(db: DBSession, item: ClosedLoopItem, answer: dict[str, Any],
+                      now: datetime) -> None:
+        """Record a checked answer (`_cl_check_answer`) on its item; the item on screen is
+        then the next one."""
+        db.info.pop((PENDING_KEY, item.session_pk, item.domain), None)
         for name, value in answer.items():
             setattr(item, name, value)
         item.done_at = now
@@ -192,6 +206,7 @@ class ClosedLoopSteps:
                         raise ApiError(500, "teacher_mismatch", "the teacher's item "
                                        f"{result['index']} does not follow {n} answers")
                     db.add(self._cl_row(row, job["domain"], result, now))
+                    db.info.pop((PENDING_KEY, row.id, job["domain"]), None)
             except IntegrityError:
                 return True  # another request or server process recorded it first
         return True

@@ -109,30 +109,33 @@ class PageViews:
                 counts[payload["demo_index"]] += 1
         return counts
 
-    def _check_demo(self, db: DBSession, row: Session, step: dict, ev: Event,
-                    p: schemas.DemoPlayStart | schemas.DemoPlayEnd, now: datetime) -> dict:
-        """Refuse unknown demonstrations; time a play's end against its start, server-side.
-
-        A play counts as watched only if this end closes a start of the same demonstration
-        (the last play event of the step) and lasted, on the server's clock, at least the
-        replay's length minus a small tolerance (`steps.demo_required_ms`).
-        """
-        study = self.study_of(row)
+    def _play_length(self, db: DBSession, row: Session, step: dict,
+                     p: schemas.DemoPlayStart | schemas.DemoPlayEnd) -> int:
+        """Refuse a play of a demonstration this page does not show; the steps it lasts."""
         if step["kind"] == "closed_loop":
             item = self._cl_pending(db, row, step)
             if item is None or p.demo_index != item.position or item.kind == "test":
                 raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not the "
                                "demonstration or feedback this page shows")
-            n = self._cl_play_actions(db, row, step, item)
-            demos = {p.demo_index: {"actions": [None] * n}}
-        else:
-            demos = study["curricula"][step["domain"]][row.condition]
-        if p.demo_index >= len(demos) and step["kind"] != "closed_loop":
+            return self._cl_play_actions(db, row, step, item)
+        demos = self.study_of(row)["curricula"][step["domain"]][row.condition]
+        if p.demo_index >= len(demos):
             raise ApiError(422, "unknown_demo", f"demo_index {p.demo_index} is not one of this "
                            f"page's {len(demos)} demonstrations")
+        return len(demos[p.demo_index]["actions"])
+
+    def _time_play(self, db: DBSession, row: Session, ev: Event,
+                   p: schemas.DemoPlayStart | schemas.DemoPlayEnd, n_actions: int,
+                   now: datetime) -> dict:
+        """Time a play's end against its start, server-side.
+
+        A play counts as watched only if this end closes a start of the same demonstration
+        (the last play event of the step) and lasted, on the server's clock, at least the
+        replay's length minus a small tolerance (`steps.demo_required_ms`).
+        """
         if not isinstance(p, schemas.DemoPlayEnd):
             return {}
-        need = demo_required_ms(len(demos[p.demo_index]["actions"]), study["demo_step_ms"])
+        need = demo_required_ms(n_actions, self.study_of(row)["demo_step_ms"])
         start = db.scalar(select(Event).where(
             Event.session_pk == row.id, Event.step_index == row.step_index,
             Event.type.in_(("demo_play_start", "demo_play_end")))

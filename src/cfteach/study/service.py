@@ -8,7 +8,7 @@ import re
 import secrets
 import threading
 from datetime import datetime
-from typing import Any, TypeGuard, cast
+from typing import Any, NamedTuple, TypeGuard, cast
 
 from pydantic import ValidationError
 from sqlalchemy import Engine, func, select, text
@@ -28,7 +28,7 @@ from .errors import ApiError
 from .games import ScoringError, replay
 from .identity import find_participant, participant_key, study_key
 from .live import LiveTeaching
-from .models import ClientReport, Event, Session, TestResponse, aware, utcnow
+from .models import ClientReport, ClosedLoopItem, Event, Session, TestResponse, aware, utcnow
 from .pages import PageViews
 from .queries import EVENT_BY_ID, SESSION_BY_TOKEN, SESSION_BY_TOKEN_LOCKED
 from .steps import ALLOWED, build_steps
@@ -47,6 +47,16 @@ def well_formed_token(token: str | None) -> TypeGuard[str]:
     return token is not None and TOKEN_RE.fullmatch(token) is not None
 
 
+
+
+class CheckedEvent(NamedTuple):
+    """An event `_check_event` accepted, with what its checks found."""
+
+    kind: str  # the kind of page it was sent on
+    step: dict
+    payload: Any  # its payload, validated (the schemas.PAYLOADS model of its type)
+    answer: tuple[ClosedLoopItem, dict[str, Any]] | None  # a closed-loop answer's record
+    play_length: int  # a play's steps (demo_play_start, demo_play_end)
 
 
 #: Sessions over: a returning participant gets the page for the status, never a new session.
@@ -267,17 +277,30 @@ class StudyService(PageViews, ClosedLoopSteps):
     def _apply(self, db: DBSession, token: str | None,
                req: schemas.EventRequest) -> tuple[Session, dict]:
         row = self._session(db, token, lock=True)
-        dup = db.scalar(EVENT_BY_ID, {"pk": row.id, "event_id": req.event_id})
-        if dup is not None:
-            raise ApiError(409, "duplicate_event", f"event {req.event_id} was already stored")
+        try:
+            checked = self._check_event(db, row, req)
+        except ApiError as e:
+            # A copy of a stored event is refused as what it is, whatever else is wrong
+            # with it now (its step passed, its item answered). Looked up only here: an
+            # accepted copy is caught by the events' unique id at its insert (store_event),
+            # which saves every event a round trip to the database (docs/study.md, "Load").
+            if db.scalar(EVENT_BY_ID, {"pk": row.id, "event_id": req.event_id}) is not None:
+                raise ApiError(409, "duplicate_event",
+                               f"event {req.event_id} was already stored") from e
+            raise
+        return row, self._store(db, row, req, checked)
+
+    def _check_event(self, db: DBSession, row: Session,
+                     req: schemas.EventRequest) -> CheckedEvent:
+        """Refuse the event (ApiError) before anything is written: the session's state, the
+        step, the payload, the demonstration a play is of, and a closed-loop answer, checked
+        in full."""
         if row.status != "in_progress":
             raise ApiError(409, "session_finished", f"this session is {row.status}")
         if req.step_index != row.step_index:
             raise ApiError(409, "wrong_step", f"event is for step {req.step_index} but the "
                            f"session is at step {row.step_index}")
-        steps = self.steps(row)
-        study = self.study_of(row)
-        step = steps[row.step_index]
+        step = self.steps(row)[row.step_index]
         kind = step["kind"]
         if req.type != "page_load" and req.type not in ALLOWED[kind]:
             raise ApiError(422, "wrong_event_type",
@@ -289,22 +312,32 @@ class StudyService(PageViews, ClosedLoopSteps):
             payload = model.model_validate(req.payload)
         except ValidationError as e:
             raise ApiError(422, "bad_payload", f"{req.type}: {_first_error(e)}") from e
-        answer = None
-        if req.type == "item_done":  # checked in full before anything is written
+        answer, play_length = None, 0
+        if req.type == "item_done":
             answer = self._cl_check_answer(db, row, step, cast(schemas.ItemDone, payload))
+        elif req.type in ("demo_play_start", "demo_play_end"):
+            play_length = self._play_length(
+                db, row, step, cast(schemas.DemoPlayStart | schemas.DemoPlayEnd, payload))
+        return CheckedEvent(kind, step, payload, answer, play_length)
+
+    def _store(self, db: DBSession, row: Session, req: schemas.EventRequest,
+               checked: CheckedEvent) -> dict:
+        """Write a checked event and apply its effect on the step machine."""
+        kind, step, payload, answer = checked.kind, checked.step, checked.payload, checked.answer
+        study = self.study_of(row)
         now = utcnow()
         row.event_seq += 1
+        row.last_active_at = now  # with event_seq: one UPDATE of the session, not two
         ev = Event(session_pk=row.id, seq=row.event_seq, event_id=req.event_id,
                    step_index=row.step_index, step_kind=kind, domain=step.get("domain"),
                    type=req.type,
                    payload=payload.model_dump(), client_ms=req.client_ms, server_at=now)
         result: dict[str, Any] = {}
         if req.type in ("demo_play_start", "demo_play_end"):
-            result = self._check_demo(
-                db, row, step, ev, cast(schemas.DemoPlayStart | schemas.DemoPlayEnd, payload), now)
+            result = self._time_play(db, row, ev, cast(schemas.DemoPlayStart | schemas.DemoPlayEnd,
+                                                       payload), checked.play_length, now)
         db.add(ev)
-        db.flush()
-        row.last_active_at = now
+        db.flush()  # a copy of a stored event fails here (unique id)
         advance = False
         if req.type in ("continue", "consent", "likert"):
             advance = True
@@ -330,10 +363,10 @@ class StudyService(PageViews, ClosedLoopSteps):
             row.age, row.gender, row.education = who.age, who.gender, who.education
             advance = True
         elif answer is not None:
-            self._cl_item_done(*answer, now)
+            self._cl_item_done(db, *answer, now)
         if advance:
             self._advance(db, row, now)
-        return row, result
+        return result
 
     def _advance(self, db: DBSession, row: Session, now: datetime) -> None:
         """Move to the next page (a closed-loop page's first item is decided after the
