@@ -12,6 +12,17 @@ from .sqlite_writes import WalSync, connection_class
 HERE = Path(__file__).parent
 _SYNCS: weakref.WeakKeyDictionary[Engine, WalSync] = weakref.WeakKeyDictionary()
 
+#: PostgreSQL connections a server keeps open, and how many more it may open for a burst.
+#: The request threads (anyio's 40) are the most that use the database at once, so 30 + 10
+#: never makes a request wait for a connection. A connection beyond the pool is closed when
+#: it is returned: with a pool of 10, 200 participants made a server open a new connection
+#: (PostgreSQL starts a backend process for each) about 10 times a second, and PostgreSQL
+#: used twice the CPU (docs/study.md, "Load"). The most recently returned connection is
+#: used first (LIFO), so a quiet study keeps few backends busy. Each server holds up to 40
+#: of PostgreSQL's `max_connections` (100 by default).
+PG_POOL_SIZE, PG_POOL_OVERFLOW = 30, 10
+PG_POOL_LIFO = True
+
 
 def durable_barrier(engine: Engine) -> None:
     """Return once whatever a read of `engine` can see now is on disk. SQLite (group
@@ -78,7 +89,8 @@ def make_engine(url: str) -> Engine:
 
         return engine
     if url.startswith("postgresql"):
-        return create_engine(url, pool_size=10, max_overflow=20, pool_pre_ping=True)
+        return create_engine(url, pool_size=PG_POOL_SIZE, max_overflow=PG_POOL_OVERFLOW,
+                             pool_use_lifo=PG_POOL_LIFO, pool_pre_ping=True)
     raise ValueError(f"unsupported database URL {url!r}: use sqlite:///PATH or "
                      "postgresql+psycopg://USER@HOST/DB")
 
