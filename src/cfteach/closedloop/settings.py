@@ -10,6 +10,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from cfteach.closedloop.noisy_params import CONFUSED, DISENGAGED, LAPSE, RATIONALITY, UPTAKE
+from cfteach.closedloop.probes import PROBE_RULES
 
 MODELS = ("noisy", "fixed")
 _GRIDS = ("zpd_band", "rationality", "uptake", "disengaged", "confused")
@@ -39,6 +40,8 @@ class TeacherSettings:
     test_every: int = 3           # after the first test, a test at least every this many items
     max_repeat: int = 2           # the same demonstration at most this many times in a row
     n_probes: int = 48            # the teacher's own probe tests (never the post-tests)
+    probes: str = "levels"        # how they are drawn: "levels", as the post-tests are
+    #                               (Algorithm 2's difficulty levels); "prior": the rule before
     min_passes: int = 2           # stop only after this many passed tests in a row
     belief_models: int = 0        # human models drawn from the belief after each test answer
     #                               (their counterfactual rows join the pool's; 0: none)
@@ -76,6 +79,7 @@ class TeacherSettings:
              "an integer >= 1"),
             ("max_repeat", isinstance(self.max_repeat, int) and self.max_repeat >= 1,
              "an integer >= 1"),
+            ("probes", self.probes in PROBE_RULES, f"one of {', '.join(PROBE_RULES)}"),
             ("min_passes", isinstance(self.min_passes, int) and self.min_passes >= 0,
              "an integer >= 0"),
             ("n_probes", isinstance(self.n_probes, int) and self.n_probes >= 1,

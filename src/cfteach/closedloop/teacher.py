@@ -74,8 +74,8 @@ class ClosedLoopTeacher:
         self.stop_reason: str | None = None
         self._pending: Item | None = None
         self._used_tests: set[int] = set()
-        self._probes = probes.probe_demos(self.pool, st.n_probes)
-        self._no_lesson = probes.lesson_blocked(self.pool, st.n_probes)
+        self._probes = probes.probe_demos(self.pool, st.n_probes, st.probes)
+        self._no_lesson = probes.lesson_blocked(self.pool, st.n_probes, st.probes)
         self._usable_lessons = self._lessons_allowed()
         self._backbone = backbone.lessons(self.pool, self._no_lesson)
         self._progress = [0.0]
@@ -186,7 +186,8 @@ class ClosedLoopTeacher:
         rng = np.random.default_rng([self.seed, 5, k])
         pick = rng.choice(live, size=min(n, len(live)), replace=False,
                           p=w[live] / w[live].sum())
-        probes.probe_paths(self.pool, self.settings.n_probes)  # cached before the pool grows
+        # cached before the pool grows
+        probes.probe_paths(self.pool, self.settings.n_probes, self.settings.probes)
         self._pool = self._pool.with_models(self._belief.particles[np.sort(pick)])
         self._usable_lessons = self._lessons_allowed()
 
@@ -254,7 +255,8 @@ class ClosedLoopTeacher:
         if not isinstance(self.belief, NoisyBelief):
             return know, know
         if np.array_equal(demos, self._probes):
-            data, starts = probes.probe_paths(self.pool, self.settings.n_probes)
+            data, starts = probes.probe_paths(self.pool, self.settings.n_probes,
+                                              self.settings.probes)
         else:
             data, starts = path_steps(self.pool.ds, demos.tolist())
         return self.belief.predicted(sat, data, starts), know

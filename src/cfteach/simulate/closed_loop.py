@@ -93,7 +93,7 @@ def closed_loop_chunk(chunk: dict[str, Any]) -> dict[str, Any]:
     out: dict[str, list] = {k: [] for k in (*keys, "items", "demos", "tests", "feedback",
                                             "predicted", "knowledge", "probe_observed",
                                             "expected")}
-    probe_tests = probes.probe_tests(pool, settings.n_probes)
+    probe_tests = probes.probe_tests(pool, settings.n_probes, settings.probes)
     for child in ss.spawn(chunk["n"]):
         learner_rng, teacher_seed = np.random.default_rng(child), child.generate_state(1)[0]
         learners = Learners(dom, chunk["model"], 1, rng=learner_rng)
