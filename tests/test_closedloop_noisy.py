@@ -241,7 +241,8 @@ def test_confusion_draws_from_its_own_stream_and_off_stores_nothing(skate):
     assert any("confused_ll" in h for h in on.belief.history)
     # The first items come before any answer, so they match; the beliefs then part.
     assert off.items[0].demo == on.items[0].demo
-    assert not np.array_equal(off.belief.log_weights, on.belief.log_weights)
+    # (both may end just after a resample, with uniform weights: compare the particles)
+    assert not np.array_equal(off.belief.particles, on.belief.particles)
 
 
 # -- a wrong noisy answer lowers the predicted success ------------------------------------

@@ -186,8 +186,7 @@ class ClosedLoopTeacher:
         rng = np.random.default_rng([self.seed, 5, k])
         pick = rng.choice(live, size=min(n, len(live)), replace=False,
                           p=w[live] / w[live].sum())
-        # cached before the pool grows
-        probes.probe_paths(self.pool, self.settings.n_probes, self.settings.probes)
+        probes.probe_paths(self.pool, self.settings.n_probes, self.settings.probes)  # pre-growth
         self._pool = self._pool.with_models(self._belief.particles[np.sort(pick)])
         self._usable_lessons = self._lessons_allowed()
 
