@@ -125,7 +125,7 @@ def _teacher_settings(pairs: list[str] | None) -> dict:
                 out[key] = (float(lo), float(hi))
             elif key in ("rationality", "uptake", "disengaged", "confused"):  # grids: a/b/c
                 out[key] = tuple(float(x) for x in value.split("/"))
-            elif key in ("model", "probes"):
+            elif key in ("model", "probes", "confusion"):
                 out[key] = value
             elif types[key] in ("int", int):
                 out[key] = int(value)

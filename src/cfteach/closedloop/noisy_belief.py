@@ -15,14 +15,14 @@ strange weights. Here every particle carries three things:
   that a whole answer was not an attempt at all (uniformly random moves). An answer's
   likelihood is ``(1 - lambda) * L_engaged + lambda * L_random``, so one wild answer among
   good ones does not make the learner irrational for good.
-* ``c``: their confusion, one of the values of a grid (`confused`, in [0, 1)): the chance
-  that an attempt was planned under weights the learner might *then* have held rather than
-  the particle's own, taken from the belief at the time of the answer (the learner is as
-  unsure as the teacher is of them): ``L_engaged = (1 - c) * L_policy(w) + c * E_belief[
-  L_policy(w')]``. Errors made while the belief was wide are then explained by the width of
-  what the learner knew, which teaching narrows, and not only by a fixed low rationality
-  that would still weigh on predictions once the learner knows (Lee, Simmons & Admoni's
-  2024 model is ``c = 1``: a learner answers from a weight drawn from the particles).
+* ``c``: their confusion: the chance that an attempt was planned under weights the learner
+  might *then* have held rather than the particle's own, taken from the belief at the time
+  of the answer: ``L_engaged = (1 - c) * L_policy(w) + c * E_belief[L_policy(w')]``. By
+  default (`confusion="since"`, `cfteach.closedloop.since`) ``c = 1 - (1 - u) ** k`` for
+  an answer ``k`` demonstrations back; with ``"grid"``, one value per learner from a grid
+  (`confused`, in [0, 1)). Errors made while the belief was wide are then explained by the
+  width of what the learner knew, which teaching narrows, and not by a low rationality for
+  good (Lee, Simmons & Admoni's 2024 model is ``c = 1``).
 
 ``Q_w(s, a) = w . Psi(s, a)`` with ``Psi(s, a)`` the feature counts of taking ``a`` in ``s``
 and then following the robot's optimal policy (the one-action deviations of standard IRL;
@@ -53,6 +53,7 @@ from cfteach.closedloop.belief import (
     systematic_resample,
     tangent_proposal,
 )
+from cfteach.closedloop.mh_parts import select_parts, select_rows
 from cfteach.closedloop.noisy_params import (
     CONFUSED,
     DISENGAGED,
@@ -61,6 +62,7 @@ from cfteach.closedloop.noisy_params import (
     UPTAKE,
     as_grid,
 )
+from cfteach.closedloop.since import CONFUSION_MODELS, demos_after, log_shares, share
 from cfteach.closedloop.steps import (
     StepData,
     Taken,
@@ -80,7 +82,7 @@ class NoisyBelief(ParticleBelief):
     def __init__(self, prior: np.ndarray, dim: int, *, n_particles: int = 1000, seed: int = 0,
                  rationality: Any = RATIONALITY, uptake: Any = UPTAKE,
                  disengaged: Any = DISENGAGED, confused: Any = CONFUSED,
-                 lapse: float = LAPSE, n_reference: int = 4000,
+                 confusion: str = "grid", lapse: float = LAPSE, n_reference: int = 4000,
                  particles: np.ndarray | None = None, resample: bool = True,
                  n_moves: int = 3) -> None:
         super().__init__(prior, dim, n_particles=n_particles, seed=seed, p_learn=0.5,
@@ -93,6 +95,14 @@ class NoisyBelief(ParticleBelief):
         if not 0.0 <= lapse < 1.0:
             raise ValueError(f"lapse must lie in [0, 1), got {lapse!r}")
         self.lapse = lapse
+        if confusion not in CONFUSION_MODELS:
+            raise ValueError(f"confusion must be one of {', '.join(CONFUSION_MODELS)}, "
+                             f"got {confusion!r}")
+        self.confusion = confusion
+        # model "since": the log posterior the particles were drawn at; the answers' policy
+        # terms at the particles and at the reference points (`_apply`)
+        self._base = np.zeros(len(self.particles))
+        self._policy = (np.zeros((len(self.particles), 0)), np.zeros((len(self.reference), 0)))
         rng = np.random.default_rng([self.seed, 5])
         self.idx = {k: self._spread(len(self.particles), len(g), rng)
                     for k, g in self.grids.items()}
@@ -118,8 +128,13 @@ class NoisyBelief(ParticleBelief):
 
     @property
     def confusion_on(self) -> bool:
-        """Whether the confusion term can matter (some grid value above 0)."""
-        return bool(np.any(self.grids["confused"] > 0))
+        """Whether the confusion term can matter (model "since", or a grid value above 0)."""
+        return self.confusion == "since" or bool(np.any(self.grids["confused"] > 0))
+
+    def _shares(self, v: dict[str, np.ndarray], k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``[P, E]`` logs of the kept and confused shares of answers followed by `k`
+        demonstrations (`since.log_shares`)."""
+        return log_shares(self.confusion, v["uptake"], v["confused"], k)
 
     # ------------------------------------------------------------------ the policy
     def _log_policy(self, x: np.ndarray, beta: np.ndarray) -> np.ndarray:
@@ -142,16 +157,17 @@ class NoisyBelief(ParticleBelief):
 
     def _p_optimal(self, x: np.ndarray, v: dict[str, np.ndarray], optimal: np.ndarray,
                    test_starts: np.ndarray, sat: np.ndarray,
-                   confused_p: np.ndarray | None = None) -> np.ndarray:
+                   confused_p: np.ndarray | None = None, k: float = 0.0) -> np.ndarray:
         """``[P, T]``: engaged, the weights lie in the test's region (`sat`; else only by
         a lapse) and every move is optimal; disengaged, random moves happen to be.
         `confused_p` ``[B, T]``: the belief's engaged chance per rationality value, for the
-        confused share of attempts (None: no confusion term)."""
+        confused share of attempts (None: no confusion term) of an answer followed by `k`
+        demonstrations."""
         pol, rand = self._follow(x, v["beta"], optimal, test_starts)
         lam = v["disengaged"][:, None]
         engaged = pol * np.where(sat, 1.0, self.lapse)
         if confused_p is not None:
-            c = v["confused"][:, None]
+            c = share(self.confusion, v["uptake"], v["confused"], k)
             engaged = (1 - c) * engaged + c * confused_p[v["beta_index"]]
         return (1 - lam) * engaged + lam * rand[None]
 
@@ -171,8 +187,9 @@ class NoisyBelief(ParticleBelief):
         if data.optimal is None:
             raise ValueError("p_optimal_paths: data needs the optimal actions (path_steps)")
         x = data.x(self.particles)
+        # a prediction has no demonstration before it: model "since" uses the weights now
         conf = (self._engaged_by_beta(x, data.optimal, test_starts, region_sat)
-                if self.confusion_on else None)
+                if self.confusion_on and self.confusion == "grid" else None)
         return self._p_optimal(x, self._values(self.idx), data.optimal, test_starts,
                                region_sat, conf)
 
@@ -241,29 +258,33 @@ class NoisyBelief(ParticleBelief):
     # ------------------------------------------------------------------ likelihoods
     def _steps_ll(self, per_move: np.ndarray, n_moves: np.ndarray, n_actions: int,
                   lam: np.ndarray, v: dict[str, np.ndarray] | None = None,
-                  confused_ll: np.ndarray | None = None) -> np.ndarray:
+                  confused_ll: np.ndarray | None = None,
+                  k: np.ndarray | None = None) -> np.ndarray:
         """``[P, E]`` answers' log-likelihoods: `per_move` ``[P, E]`` the policy's summed
         log pi, mixed with random moves (``-n log A``) by disengagement `lam` ``[P]``;
         with `confused_ll` ``[E, B]`` (the belief's log-likelihood of each answer per
-        rationality value), the confused share ``c`` of each attempt is scored by it."""
+        rationality value), the confused share of each attempt (`_shares`; `k` ``[E]``:
+        demonstrations after each answer, default none) is scored by it."""
         rand = -n_moves * math.log(n_actions)
         if confused_ll is not None and v is not None:
-            c = v["confused"][:, None]
-            with np.errstate(divide="ignore"):
-                log_c = np.log(c)
-            per_move = np.logaddexp(np.log1p(-c) + per_move,
+            log_keep, log_c = self._shares(v, np.zeros(per_move.shape[1]) if k is None else k)
+            per_move = np.logaddexp(log_keep + per_move,
                                     log_c + confused_ll[:, v["beta_index"]].T)
         return np.logaddexp(np.log1p(-lam)[:, None] + per_move,
                             np.log(lam)[:, None] + rand[None, :])
 
-    def _entry_ll(self, entry: dict[str, Any], points: np.ndarray,
-                  v: dict[str, np.ndarray]) -> np.ndarray:
+    def _entry_ll(self, entry: dict[str, Any], points: np.ndarray, v: dict[str, np.ndarray],
+                  policy_out: list | None = None) -> np.ndarray:
+        """One entry's log-likelihood at `points` (an answer's with no demonstration after
+        it); a steps answer's policy term is appended to `policy_out` if given."""
         if entry["kind"] == "demonstration":
             return np.where(_sat(points, entry["constraints"]), 0.0, np.log1p(-v["uptake"]))
         x = StepData.of(entry).x(points)
         if entry["kind"] == "steps":
             counts = entry["counts"]
             pol = self._taken_log_policy(x, v["beta"], counts, taken_actions(counts)).sum(1)
+            if policy_out is not None:
+                policy_out.append(pol)
             conf = entry.get("confused_ll")
             return self._steps_ll(pol[:, None], np.array([counts.sum()]), x.shape[2],
                                   v["disengaged"], v,
@@ -271,27 +292,44 @@ class NoisyBelief(ParticleBelief):
         return self._outcome_ll(entry, x, v, _sat(points, entry["region"]))
 
     def _outcome_ll(self, entry: dict[str, Any], x: np.ndarray, v: dict[str, np.ndarray],
-                    ok: np.ndarray) -> np.ndarray:
+                    ok: np.ndarray, k: float = 0.0) -> np.ndarray:
         conf = entry.get("confused_p")
         # `confused_p` is stored as ``[B, 1]`` (one test); a history read back from JSON
         # may hold it flat.
         p = self._p_optimal(x, v, entry["optimal"], np.array([0]), ok[:, None],
                             None if conf is None
-                            else np.asarray(conf, dtype=float).reshape(-1, 1))[:, 0]
+                            else np.asarray(conf, dtype=float).reshape(-1, 1), k)[:, 0]
         p = np.clip(p, 1e-300, 1 - 1e-12)
         return np.log(p) if entry["correct"] else np.log1p(-p)
 
     def _apply(self, entry: dict[str, Any]) -> None:
         self.history.append(entry)
         self._stack = None
-        lw = self.log_weights + self._entry_ll(entry, self.particles, self._values(self.idx))
+        since = self.confusion == "since"
+        if (since and entry["kind"] == "demonstration"
+                and any(e["kind"] != "demonstration" for e in self.history)):
+            # every earlier answer is one more demonstration back (`since`): the posterior
+            # is evaluated afresh (the answers' costly policy terms kept from when they
+            # came) and the particles weighted by it over the one they were drawn at
+            lw = self._posterior_from(self._parts(self.particles, policy=False), self.idx,
+                                      self._policy[0]) - self._base
+            self.reference_loglik = self._posterior_from(
+                self._parts(self.reference, policy=False), self.ref_idx, self._policy[1])
+        else:
+            got: list[np.ndarray] = []
+            lw = self.log_weights + self._entry_ll(entry, self.particles,
+                                                   self._values(self.idx), got)
+            self.reference_loglik = self.reference_loglik + self._entry_ll(
+                entry, self.reference, self._values(self.ref_idx), got)
+            if since and got:
+                self._policy = (np.column_stack([self._policy[0], got[0]]),
+                                np.column_stack([self._policy[1], got[1]]))
         self.log_weights = lw - np.logaddexp.reduce(lw)
-        self.reference_loglik = self.reference_loglik + self._entry_ll(
-            entry, self.reference, self._values(self.ref_idx))
         self.resample_if_needed()
 
-    def _parts(self, points: np.ndarray) -> dict[str, Any]:
-        """What the posterior needs of `points` that does not depend on the grid values."""
+    def _parts(self, points: np.ndarray, policy: bool = True) -> dict[str, Any]:
+        """What the posterior needs of `points` that does not depend on the grid values
+        (without `policy`, not what the answers' policy term needs: the caller has it)."""
         demos = [e["constraints"] for e in self.history if e["kind"] == "demonstration"
                  and len(e["constraints"])]
         steps = [e for e in self.history if e["kind"] == "steps"]
@@ -305,7 +343,7 @@ class NoisyBelief(ParticleBelief):
                 else np.zeros((0, self.dim))
             # x once per distinct group: answers revisit the same states
             distinct, group = (distinct_steps([e for e in steps if len(e["rows"])])
-                               if keep.any() else (None, None))
+                               if keep.any() and policy else (None, None))
             x = distinct.x(points) if distinct is not None else None
             # An answer with no moves has likelihood 1 under either share of an attempt.
             conf = [e.get("confused_ll", None if len(e["rows"])
@@ -313,11 +351,13 @@ class NoisyBelief(ParticleBelief):
             out["steps"] = {
                 "confused_ll": (np.array(conf) if conf and all(c is not None for c in conf)
                                 else None),
-                "counts": counts, "x": x, "taken": taken_actions(counts, group),
+                "counts": counts, "x": x,
+                "taken": taken_actions(counts, group) if policy else None,
                 "starts": np.concatenate([[0], np.cumsum(sizes[keep])[:-1]]).astype(np.int64),
                 "keep": keep, "n_moves": np.array([e["counts"].sum() for e in steps])}
         out["outcomes"] = [(e, StepData.of(e).x(points), _sat(points, e["region"]))
                            for e in self.history if e["kind"] == "outcome"]
+        out["after_steps"], out["after_outcomes"] = demos_after(self.history)
         return out
 
     def _answers_policy(self, parts: dict[str, Any], beta: np.ndarray) -> np.ndarray | None:
@@ -350,9 +390,10 @@ class NoisyBelief(ParticleBelief):
                 pol = self._answers_policy(parts, v["beta"])
             assert pol is not None  # there are answers ("steps" in parts)
             out = out + self._steps_ll(pol, st["n_moves"], self.batch_actions(st),
-                                       v["disengaged"], v, st["confused_ll"]).sum(axis=1)
-        for e, x, ok in parts["outcomes"]:
-            out = out + self._outcome_ll(e, x, v, ok)
+                                       v["disengaged"], v, st["confused_ll"],
+                                       parts["after_steps"]).sum(axis=1)
+        for (e, x, ok), k in zip(parts["outcomes"], parts["after_outcomes"], strict=True):
+            out = out + self._outcome_ll(e, x, v, ok, float(k))
         return np.where(parts["prior_ok"], out, -np.inf)
 
     @staticmethod
@@ -401,8 +442,8 @@ class NoisyBelief(ParticleBelief):
             lp = self._posterior_from(prop_parts, idx, prop_pol)
             accept = np.log(rng.random(n)) < lp - current
             pts = np.where(accept[:, None], prop, pts)
-            parts = _select_parts(parts, prop_parts, accept)
-            pol = _select_rows(pol, prop_pol, accept)
+            parts = select_parts(parts, prop_parts, accept)
+            pol = select_rows(pol, prop_pol, accept)
             current = np.where(accept, lp, current)
             rate = float(accept.mean())
             rates.append(rate)
@@ -421,9 +462,12 @@ class NoisyBelief(ParticleBelief):
                 lp = self._posterior_from(parts, trial, trial_pol)
                 accept = np.log(rng.random(n)) < lp - current
                 idx[name] = np.where(accept, trial[name], idx[name])
-                pol = _select_rows(pol, trial_pol, accept)
+                pol = select_rows(pol, trial_pol, accept)
                 current = np.where(accept, lp, current)
         self.idx = idx
+        self._base = current  # the posterior the moved particles are drawn from
+        if pol is not None:
+            self._policy = (pol, self._policy[1])
         self.step_size = step
         self.acceptance = float(np.mean(rates)) if rates else None
         return pts
@@ -454,26 +498,3 @@ def _sat(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     if not len(rows):
         return np.ones(len(points), dtype=bool)
     return np.all(points @ np.asarray(rows).T >= -TOL, axis=1)
-
-
-def _select_rows(old: np.ndarray | None, new: np.ndarray | None, take: np.ndarray
-                 ) -> np.ndarray | None:
-    """Rows of `new` where `take`, else of `old` (None stays None: no answers yet)."""
-    if old is None or new is None:
-        return old
-    return np.where(take[:, None], new, old)
-
-
-def _select_parts(old: dict[str, Any], new: dict[str, Any], take: np.ndarray) -> dict[str, Any]:
-    """Per-point parts: `new`'s where `take`, else `old`'s (after an MH step on w)."""
-    out: dict[str, Any] = {"prior_ok": np.where(take, new["prior_ok"], old["prior_ok"]),
-                           "missed": np.where(take, new["missed"], old["missed"])}
-    if "steps" in old:
-        st = dict(old["steps"])
-        if st["x"] is not None:
-            st["x"] = np.where(take[:, None, None], new["steps"]["x"], old["steps"]["x"])
-        out["steps"] = st
-    out["outcomes"] = [(e, np.where(take[:, None, None], xn, xo), np.where(take, okn, oko))
-                       for (e, xo, oko), (_, xn, okn) in zip(old["outcomes"], new["outcomes"],
-                                                             strict=True)]
-    return out

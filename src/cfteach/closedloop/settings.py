@@ -11,6 +11,7 @@ from typing import Any
 
 from cfteach.closedloop.noisy_params import CONFUSED, DISENGAGED, LAPSE, RATIONALITY, UPTAKE
 from cfteach.closedloop.probes import PROBE_RULES
+from cfteach.closedloop.since import CONFUSION_MODELS
 
 MODELS = ("noisy", "fixed")
 _GRIDS = ("zpd_band", "rationality", "uptake", "disengaged", "confused")
@@ -34,8 +35,10 @@ class TeacherSettings:
     rationality: tuple[float, ...] = RATIONALITY  # model "noisy": grid of beta
     uptake: tuple[float, ...] = UPTAKE            # model "noisy": grid of demo uptake
     disengaged: tuple[float, ...] = DISENGAGED    # model "noisy": grid of P(random answer)
-    confused: tuple[float, ...] = CONFUSED        # model "noisy": grid of P(attempt planned
-    #                                               under weights drawn from the belief then)
+    confused: tuple[float, ...] = CONFUSED        # model "noisy", confusion "grid": grid of
+    #                          P(attempt planned under weights drawn from the belief then)
+    confusion: str = "since"      # model "noisy": "since", that share is 1 - (1 - uptake)^k
+    #                               for an answer k demonstrations back; "grid": `confused`
     lapse: float = LAPSE          # model "noisy": chance of a random move at any step
     test_every: int = 3           # after the first test, a test at least every this many items
     max_repeat: int = 2           # the same demonstration at most this many times in a row
@@ -79,6 +82,8 @@ class TeacherSettings:
              "an integer >= 1"),
             ("max_repeat", isinstance(self.max_repeat, int) and self.max_repeat >= 1,
              "an integer >= 1"),
+            ("confusion", self.confusion in CONFUSION_MODELS,
+             f"one of {', '.join(CONFUSION_MODELS)}"),
             ("probes", self.probes in PROBE_RULES, f"one of {', '.join(PROBE_RULES)}"),
             ("min_passes", isinstance(self.min_passes, int) and self.min_passes >= 0,
              "an integer >= 0"),

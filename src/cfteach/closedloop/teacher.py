@@ -63,7 +63,7 @@ class ClosedLoopTeacher:
             self._belief: ParticleBelief = NoisyBelief(
                 prior, ds.F, n_particles=st.n_particles, seed=self.seed,
                 rationality=st.rationality, uptake=st.uptake, disengaged=st.disengaged,
-                confused=st.confused, lapse=st.lapse)
+                confused=st.confused, confusion=st.confusion, lapse=st.lapse)
         else:
             self._belief = ParticleBelief(prior, ds.F, n_particles=st.n_particles,
                                           seed=self.seed, p_learn=st.p_learn,

@@ -41,9 +41,10 @@ def settings_of(cell: dict) -> TeacherSettings:
     # A study file written before the confusion term runs its sessions without it, so
     # their replays (and so their next items) stay those they were served.
     s.setdefault("confused", (0.0,))
-    # ... and one written before the probes were drawn as the post-tests are keeps the rule
-    # it was written with.
+    # ... and one written before the probes were drawn as the post-tests are, or before
+    # answers were weighed by what was taught since, keeps what it was written with.
     s.setdefault("probes", "prior")
+    s.setdefault("confusion", "grid")
     return TeacherSettings(**s)
 
 
