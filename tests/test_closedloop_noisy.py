@@ -15,6 +15,7 @@ from cfteach.closedloop import ClosedLoopTeacher, NoisyBelief, TeacherSettings, 
 from cfteach.closedloop.probes import probe_demos
 from cfteach.closedloop.steps import answer_steps, path_steps
 from cfteach.domains import load
+from closedloop_fixtures import two_particles, walk
 
 SMALL = TeacherSettings(n_particles=300, max_items=24)
 
@@ -48,14 +49,8 @@ def test_answer_likelihood_matches_a_step_by_step_computation(skate):
     d = int(np.flatnonzero(ds.length >= 4)[0])
     e = int(ds.env[d])
     rng = np.random.default_rng(3)
-    moves = _random_walk(skate, d, rng, 12)
-    states, s = [], int(ds.start[d])
-    for name in moves:
-        states.append(s)
-        s = int(ds.batch.next_state[e, s, ds.batch.actions.index(name)])
-    acts = [ds.batch.actions.index(m) for m in moves]
-    w = np.array([[-0.2, -0.5, -0.84], [-0.9, -0.1, -0.42]])
-    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    states, acts = walk(ds, d, _random_walk(skate, d, rng, 12))
+    w = two_particles()
     belief = NoisyBelief(load("skateboard").prior, 3, particles=w, lapse=0.03,
                          rationality=(7.0, 40.0), disengaged=(0.1, 0.3), confused=(0.0,))
     belief.idx["beta"] = np.array([0, 1])

@@ -14,6 +14,7 @@ from cfteach.closedloop.noisy_belief import NoisyBelief
 from cfteach.closedloop.since import demos_after, log_shares, share
 from cfteach.closedloop.steps import answer_steps
 from cfteach.domains import load
+from closedloop_fixtures import two_particles, walk
 
 
 @pytest.fixture(scope="module")
@@ -55,14 +56,8 @@ def test_an_answer_fades_as_demonstrations_follow_it(skate):
     ds = skate.ds
     d = next(iter(sorted(skate.held_out)))
     e = int(ds.env[d])
-    moves = ["up", "down", *ds.action_names(d)]
-    states, s = [], int(ds.start[d])
-    for name in moves:
-        states.append(s)
-        s = int(ds.batch.next_state[e, s, ds.batch.actions.index(name)])
-    acts = [ds.batch.actions.index(m) for m in moves]
-    w = np.array([[-0.2, -0.5, -0.84], [-0.9, -0.1, -0.42]])
-    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    states, acts = walk(ds, d, ["up", "down", *ds.action_names(d)])
+    w = two_particles()
     belief = NoisyBelief(load("skateboard").prior, 3, particles=w, lapse=0.02, resample=False,
                          rationality=(7.0, 40.0), uptake=(0.3, 0.8), disengaged=(0.1, 0.3),
                          confusion="since")
