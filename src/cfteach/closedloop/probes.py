@@ -8,9 +8,9 @@ up to `n` candidate tests, never a held-out one, drawn by one of two rules (`PRO
   (Algorithm 2, `cfteach.teaching.testsel`, with `select_tests`'s defaults): each
   candidate's overlap with the domain's posterior region, k-means into 5 clusters, and a
   third of the probes from each of the low, medium and high levels' clusters, spread evenly
-  over overlap inside each. Why: a prediction is checked against the post-tests,
-  and probes unlike them miss it whatever the learner model (docs/closed-loop.md,
-  "Probes drawn as the post-tests are").
+  over overlap inside each. Why: a prediction is checked against the post-tests, and
+  probes unlike them miss it whatever the learner model (docs/closed-loop.md, "Predictions
+  from the teacher's own probes").
 * ``"prior"``: spread evenly over the share of 2,000 prior draws that answer them optimally,
   trivial and impossible ones left out (the rule before; a study file written with it keeps
   it, so its sessions replay unchanged).

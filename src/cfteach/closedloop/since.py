@@ -11,8 +11,8 @@ prediction (an answer with no demonstration before it) uses the weights now alon
 
 Why: with a confusion share `c` fixed for the whole session (model ``"grid"``), every
 answer, the last ones included, is partly explained away by the belief's width, so passed
-tests hardly narrow the belief; learners who had learned everything were predicted 0.07-0.16
-below their score (docs/closed-loop.md, "Answers weighed by what was taught since").
+tests hardly narrow the belief: learners who had learned everything were predicted up to
+0.16 below their score (docs/closed-loop.md, "Answers weighed by what was taught since").
 """
 
 from __future__ import annotations
