@@ -13,9 +13,10 @@ decisions a page is waiting for before the ones made ahead (`DecisionLane`): whe
 participants answer a test at once, their next items are not queued behind items nobody
 has reached yet.
 
-Why processes: a decision is ~0.1 s of numpy and Python on one core. In threads of the web
-server it holds the interpreter, and every other request waits behind it (the third-pass
-review measured page p99 of 0.5-1.8 s with 100 closed-loop participants).
+Why processes: a decision is numpy and Python on one core, a few ms at the median and up to
+0.1-0.3 s after a long answer (bench/bench_closed_loop.py). In threads of the web server it
+holds the interpreter, and every other request waits behind it (the third-pass review
+measured page p99 of 0.5-1.8 s with 100 closed-loop participants).
 """
 
 from __future__ import annotations
