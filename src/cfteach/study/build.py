@@ -18,7 +18,7 @@ from typing import Any
 from cfteach.mdp.scoring import is_optimal
 
 from .controls import action_specs_of, controls
-from .games import best_path, build_game, optimal_value, public_game, replay
+from .games import best_path, build_game, optimal_value, replay
 from .identity import new_study_key
 from .layout import instance_layout
 from .practice import (
@@ -247,11 +247,6 @@ def _split_tests(name: str, ts: dict, instances: list, actions: tuple[str, ...],
 
 def _overlap(x: Any) -> float | None:
     return None if x is None or x != x else float(x)  # NaN = unknown
-
-
-def browser_game(test: dict) -> dict:
-    """A test as the page receives it."""
-    return {"layout": test["layout"], "game": public_game(test["game"])}
 
 
 def teaching_sources(names: Iterable[str] = ("delivery", "tiles", "skateboard"), *,

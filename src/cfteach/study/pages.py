@@ -12,10 +12,11 @@ from sqlalchemy.orm import Session as DBSession
 from cfteach.domains.spec import BUILTIN_ACTIONS
 
 from . import schemas
-from .build import browser_game
 from .controls import PRACTICE_CONTROLS, controls
 from .errors import ApiError
+from .games import public_game
 from .models import Event, Session, TestResponse, aware, utcnow
+from .page_json import static_game
 from .queries import VERIFIED_PLAY_ENDS
 from .steps import demo_required_ms
 from .texts import EDUCATION, GENDERS, LIKERT, design_facts
@@ -52,7 +53,8 @@ class PageViews:
             step["html"] = s["consent_html"]
         if kind in ("free_play", "practice"):
             p = s["practice"]
-            step.update(layout=p["layout"], game=p["game"],  # not secret: energy shown
+            step.update(layout=p["layout"],  # the whole game: not secret, energy is shown
+                        game=static_game(p["game"], dict),
                         weights=p["weights"], start_energy=p["start_energy"],
                         target_energy=p["target_energy"], attempts_used=row.practice_attempts,
                         attempts_allowed=s["practice_attempts"], controls=PRACTICE_CONTROLS)
@@ -80,7 +82,8 @@ class PageViews:
             step["items"] = {k: LIKERT[k] for k in ("informativeness", "mental_effort")}
         elif kind == "test":
             t = s["tests"][step["domain"]][row.test_set][step.pop("test_index")]
-            step.update(browser_game(t), info=_public_info(s["domain_info"][step["domain"]]),
+            step.update(layout=t["layout"], game=static_game(t["game"], public_game),
+                        info=_public_info(s["domain_info"][step["domain"]]),
                         confidence=LIKERT["confidence"],
                         n_trials=len(s["tests"][step["domain"]][row.test_set]),
                         # so time_ms counts from the first showing, even across reloads

@@ -18,6 +18,7 @@ from .config import StudyError, load_study
 from .costs import event_cost
 from .db import check_synchronous_commit, make_engine, upgrade
 from .guard import BODY_TIMEOUT_S, Guard
+from .page_json import PageResponse
 from .ratelimit import RateLimiter
 from .responses import Ack, EventAck, Progress, SessionStarted, State, errors
 from .service import ApiError, StudyService, well_formed_token
@@ -167,7 +168,7 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
         tok = _session_token(request, x_session_token)
         if not state_limit.allow(tok):
             raise ApiError(429, "rate_limited", "too many page reads; slow down")
-        return JSONResponse(await service.state_async(tok, wait=wait))
+        return PageResponse(await service.state_async(tok, wait=wait))
 
     @app.post("/api/event", response_model=EventAck,
               responses=errors(400, 401, 408, 409, 410, 413, 415, 422, 429, 503))
@@ -177,7 +178,7 @@ def create_app(study_dir: str | Path, db_url: str | None = None, *,
         tok = _session_token(request, x_session_token)
         if not event_limit.allow(tok, cost=event_cost(req.type)):  # type: ignore[attr-defined]
             raise ApiError(429, "rate_limited", "too many events; slow down")
-        return JSONResponse(await service.post_event_async(tok, schemas.as_request(req)))
+        return PageResponse(await service.post_event_async(tok, schemas.as_request(req)))
 
     @app.post("/api/client-report", response_model=Ack,
               responses=errors(400, 413, 415, 422, 429))
