@@ -56,6 +56,8 @@ def test_a_game_is_kept_once_per_source_and_refuses_nan() -> None:
     assert static_game(source, public_game) is first
     assert dict(first) == public_game(source) and json.loads(first.text) == public_game(source)
     assert static_game(dict(source), public_game) is not first  # another object: made anew
+    whole = static_game(source, dict)  # the same object shown another way: kept apart
+    assert whole is not first and dict(whole) == source
     with pytest.raises(ValueError):
         StaticGame({**GAME, "states": [[math.nan]]})
 

@@ -42,21 +42,22 @@ class StaticGame(dict):
         self.text = dumps(self)
 
 
-_games: dict[int, tuple[object, StaticGame]] = {}
+_games: dict[tuple[int, Callable[[dict], dict]], tuple[object, StaticGame]] = {}
 _lock = threading.Lock()
 
 
 def static_game(source: dict, public: Callable[[dict], dict]) -> StaticGame:
     """``public(source)`` as a `StaticGame`, made once per `source` object (a game in a
     loaded study, which lives as long as the server)."""
-    hit = _games.get(id(source))
+    key = (id(source), public)
+    hit = _games.get(key)
     if hit is not None and hit[0] is source:
         return hit[1]
     game = StaticGame(public(source))
     with _lock:
         if len(_games) >= MAX_GAMES:
             _games.clear()
-        _games[id(source)] = (source, game)  # holding `source`: its id is not reused
+        _games[key] = (source, game)  # holding `source`: its id is not reused
     return game
 
 
