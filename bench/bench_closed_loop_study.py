@@ -148,6 +148,9 @@ def main() -> int:
     ap.add_argument("--servers", type=int, default=1, help="`cfteach serve` processes on "
                     "the one database (PostgreSQL for more than one)")
     ap.add_argument("--decision-workers", type=int, default=2, help="per server")
+    ap.add_argument("--sticky", action="store_true", help="with --servers > 1, send each "
+                    "participant's requests to one server (as a proxy routing by session "
+                    "token does) instead of to the next server in turn")
     ap.add_argument("--attackers", type=int, default=0, help="closed-loop sessions sending "
                     "refused answers and page reads at their rate limits")
     ap.add_argument("--refusal-cost", type=int, default=0, metavar="N", help="instead: send "
@@ -341,7 +344,8 @@ def _run(bases: list[str], args: argparse.Namespace) -> tuple[dict[str, int], di
     def one(i: int) -> tuple[str, int]:
         time.sleep(offsets[i])
         cs = clients[i]
-        c = cs[0] if len(cs) == 1 else RoundRobin(cs)
+        # --sticky: each session on one server (a proxy hashing the session token)
+        c = cs[0] if len(cs) == 1 else cs[i % len(cs)] if args.sticky else RoundRobin(cs)
         paced = PacedClient(c, args.pace, times, lock)
         out = run_participant(paced, {"prolific_pid": f"CLLOAD{i:06d}", "study_id": "B",
                                       "session_id": f"S{i}"})

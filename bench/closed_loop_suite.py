@@ -8,12 +8,13 @@ First the server CPU per refused closed-loop answer (`--refusal-cost 300`), then
 1. SQLite, 1 server                          2. SQLite, 1 server, 2 attackers at their limits
 3. SQLite, 1 server, the live teacher `--suite-teacher` (default n_particles=250) instead
    of the offline default (what a researcher may choose in the study file; docs/study.md)
-4. PostgreSQL, 1 server                      5. PostgreSQL, 1 server, 2 attackers
-6. PostgreSQL, 2 servers (round robin), N
-7+. capacity: PostgreSQL with 1 and with 2 servers at N/2, then N/4, each only while the
+4. SQLite, 2 servers (round robin)           5. SQLite, 2 servers, 2 attackers
+6. PostgreSQL, 1 server                      7. PostgreSQL, 1 server, 2 attackers
+8. PostgreSQL, 2 servers (round robin), N
+9+. capacity: PostgreSQL with 1 and with 2 servers at N/2, then N/4, each only while the
     larger size missed (the largest N tested with every p99 < 500 ms is the capacity)
 
-Rows 4+ need `--db postgresql+psycopg://...` (each run starts from an empty schema). The
+Rows 6+ need `--db postgresql+psycopg://...` (each run starts from an empty schema). The
 attackers' effect is each database's attackers row against its row without them.
 Each row runs about 90 to 150 s on an idle machine.
 """
@@ -43,7 +44,10 @@ def _fixed_rows(args: argparse.Namespace) -> list[tuple[str, list[str]]]:
     rows = [("sqlite", ["-n", n]),
             ("sqlite+attack", ["-n", n, "--attackers", "2"]),
             (f"sqlite, teacher {args.suite_teacher}", ["-n", n, "--teacher",
-                                                       args.suite_teacher])]
+                                                       args.suite_teacher]),
+            ("sqlite 2 servers", ["-n", n, "--servers", "2", "--decision-workers", "1"]),
+            ("sqlite 2 servers+attack", ["-n", n, "--servers", "2", "--decision-workers", "1",
+                                         "--attackers", "2"])]
     if _pg(args):
         pg = ["--db", args.db]
         rows += [("pg", [*pg, "-n", n]),
@@ -132,7 +136,7 @@ def _table(results: dict[str, dict], args: argparse.Namespace) -> None:
               f"{r['web_cores']:.2f}, {r['worker_cores']:.2f}, {r['client_cores']:.2f} | "
               f"{r['transport_errors']} | {r['lost']} / {r['duplicated']} | "
               f"{'met' if met else 'missed'} |")
-    for db in ("sqlite", "pg"):
+    for db in ("sqlite", "sqlite 2 servers", "pg"):
         base, hit = results.get(db), results.get(f"{db}+attack")
         if base and hit and "failed" not in base and "failed" not in hit:
             rises = {k: hit["p99_ms"][k] / base["p99_ms"][k] - 1 for k in TARGETS

@@ -151,3 +151,84 @@ def test_a_failed_fsync_fails_the_commit(tmp_path: Path,
     with engine.begin() as conn:  # the next writer is not stuck
         conn.execute(text("INSERT INTO t VALUES (2)"))
     engine.dispose()
+
+
+_WRITER_SCRIPT = """
+import sys
+from sqlalchemy import event, text
+from cfteach.study.db import make_engine
+engine = make_engine(sys.argv[1])
+
+@event.listens_for(engine, "connect")
+def _no_busy_wait(dbapi_conn, _rec):
+    dbapi_conn.execute("PRAGMA busy_timeout=0")
+
+for i in range(int(sys.argv[3])):
+    with engine.begin() as conn:
+        conn.execute(text("INSERT INTO t VALUES (:n)"), {"n": int(sys.argv[2]) * 1000 + i})
+        conn.execute(text("SELECT count(*) FROM t")).scalar()  # hold the lock a little
+print("done")
+"""
+
+
+def test_writers_of_several_processes_queue_instead_of_failing(tmp_path: Path) -> None:
+    """Two processes writing one file with SQLite's busy wait off: each waits for the
+    other's commit on the lock beside the database instead of failing 'database is
+    locked' (as it did when only threads of one process queued)."""
+    import subprocess
+    import sys
+
+    engine = _engine_without_busy_wait(tmp_path / "p.db")
+    url = f"sqlite:///{tmp_path / 'p.db'}"
+    procs = [subprocess.Popen([sys.executable, "-c", _WRITER_SCRIPT, url, str(k), "150"],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for k in range(2)]
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [err[-400:] for _, err in outs]
+    with engine.connect() as conn:
+        assert conn.scalar(text("SELECT count(*) FROM t")) == 300
+        assert conn.scalar(text("SELECT count(DISTINCT n) FROM t")) == 300
+    engine.dispose()
+
+
+def test_a_read_waits_for_another_process_commit_to_be_durable(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Engine `b` stands for a second server process on the same file: once `a` has
+    committed (visible, its own fsync not finished), `b`'s barrier must fsync the log
+    before it answers, though `b` committed nothing; with nothing new, no fsync."""
+    a = _engine_without_busy_wait(tmp_path / "x.db")
+    b = make_engine(f"sqlite:///{tmp_path / 'x.db'}")
+    sync_a, sync_b = _wal_sync(a), _wal_sync(b)
+    assert sync_a is not sync_b
+    sync_b.barrier()  # b's first fsync records the state it covers
+    before = sync_b.fsyncs
+    sync_b.barrier()
+    assert sync_b.fsyncs == before  # nothing new anywhere: free
+    entered, release = threading.Event(), threading.Event()
+    real = sqlite_writes.WalSync._fsync
+
+    def fsync(sync: sqlite_writes.WalSync) -> None:
+        if sync is sync_a:
+            entered.set()
+            assert release.wait(10)  # a's commit stays visible but not yet durable
+        real(sync)
+
+    monkeypatch.setattr(sqlite_writes.WalSync, "_fsync", fsync)
+
+    def write() -> None:
+        with a.begin() as conn:
+            conn.execute(text("INSERT INTO t VALUES (7)"))
+
+    t = threading.Thread(target=write)
+    t.start()
+    assert entered.wait(10)
+    with b.connect() as conn:
+        assert conn.scalar(text("SELECT count(*) FROM t")) == 1  # b can see it
+    sync_b.barrier()
+    assert sync_b.fsyncs == before + 1  # a's commit changed the log: b synced it itself
+    release.set()
+    t.join(10)
+    sync_b.barrier()
+    assert sync_b.fsyncs == before + 1  # and that fsync covers it
+    a.dispose()
+    b.dispose()

@@ -13,6 +13,12 @@ profiled with py-spy):
   we run NORMAL and do that sync ourselves, after the write lock is released, and one fsync
   serves every commit that finished before it started (group commit). `commit()` still
   returns only once the log is on disk, so an event is acknowledged only when it is durable.
+
+Several server processes may share one database file (docs/study.md, "Several server
+processes"): each process's queued writer also takes an exclusive `flock` on
+``<db>-writers``, which the kernel hands over at once, and a read that must answer only what
+is durable (`WalSync.barrier`) compares the log's index header, which every commit of every
+process changes, with the one an fsync of this process started from.
 """
 
 from __future__ import annotations
@@ -21,7 +27,16 @@ import os
 import sqlite3
 import threading
 
+try:
+    import fcntl
+except ImportError:  # Windows: one server process per database file
+    fcntl = None  # type: ignore[assignment]
+
 WRITE_WAIT_S = 30.0  # as SQLite's busy_timeout: then "database is locked"
+#: The WAL index header (https://www.sqlite.org/walformat.html, "The WAL-Index Header"):
+#: 48 bytes at the start of the -shm file; its frame count, salts and checksums change with
+#: every commit and every restart of the log, whichever process made them.
+WAL_INDEX_HEADER_BYTES = 48
 
 
 class NotDurable(OSError):
@@ -41,6 +56,8 @@ class WalSync:
         self.fsyncs = 0
         self.in_flight = 0  # COMMITs running now (visible to readers before they count)
         self._syncing = False
+        self.shm_path = db_path + "-shm"
+        self._synced_header: bytes | None = None  # the log's state when the last fsync began
 
     def begin_commit(self) -> None:
         """Call right before a write transaction's COMMIT."""
@@ -55,9 +72,23 @@ class WalSync:
         """Return once every commit a read made now could see is on disk (for answers that
         report stored data: a 409 duplicate, a page read). Free when all are already."""
         with self._cond:
-            if self.in_flight == 0 and self.durable >= self.committed:
-                return
+            here = self.in_flight == 0 and self.durable >= self.committed
+            synced = self._synced_header
+        if here and synced is not None and self.log_state() == synced:
+            return  # nothing committed, by any process, since an fsync began
         self.wait_durable(after_commit=False)
+
+    def log_state(self) -> bytes | None:
+        """The WAL index header now (None when there is no index to read)."""
+        try:
+            fd = os.open(self.shm_path, os.O_RDONLY)
+        except OSError:
+            return None
+        try:
+            head = os.pread(fd, WAL_INDEX_HEADER_BYTES, 0)
+        finally:
+            os.close(fd)
+        return head if len(head) == WAL_INDEX_HEADER_BYTES else None
 
     def wait_durable(self, *, after_commit: bool = True) -> None:
         """Call right after a write transaction's COMMIT; returns once it is on disk.
@@ -75,12 +106,14 @@ class WalSync:
                 try:
                     self._cond.release()
                     try:
+                        state = self.log_state()  # before the fsync: what it will cover
                         self._fsync()
                     except OSError as e:
                         raise NotDurable(f"fsync of {self.wal_path} failed: {e}") from e
                     finally:
                         self._cond.acquire()
                     self.durable = max(self.durable, upto)
+                    self._synced_header = state
                 finally:
                     self._syncing = False
                     self._cond.notify_all()
@@ -102,6 +135,8 @@ def connection_class(sync: WalSync | None) -> type[sqlite3.Connection]:
     """A sqlite3 connection class for one engine: queued writers, and durable commits
     through `sync` (None: SQLite syncs by itself, synchronous=FULL)."""
     lock = threading.Lock()
+    between_processes = (ProcessWriterLock(sync.db_path + "-writers")
+                         if sync is not None and fcntl is not None else None)
 
     class QueuedWriters(sqlite3.Connection):
         wal_sync = sync
@@ -110,12 +145,22 @@ def connection_class(sync: WalSync | None) -> type[sqlite3.Connection]:
         def wait_for_write_lock(self) -> None:
             if not lock.acquire(timeout=WRITE_WAIT_S):
                 raise sqlite3.OperationalError("database is locked (in-process writers)")
+            try:
+                if between_processes is not None:
+                    between_processes.acquire()
+            except BaseException:
+                lock.release()
+                raise
             self.holds_write_lock = True
 
         def release_write_lock(self) -> None:
             if self.holds_write_lock:
                 self.holds_write_lock = False
-                lock.release()
+                try:
+                    if between_processes is not None:
+                        between_processes.release()
+                finally:
+                    lock.release()
 
         def commit(self) -> None:
             wal = sync if self.holds_write_lock else None  # a write to make durable
@@ -145,3 +190,24 @@ def connection_class(sync: WalSync | None) -> type[sqlite3.Connection]:
                 self.release_write_lock()
 
     return QueuedWriters
+
+
+class ProcessWriterLock:
+    """An exclusive `flock` on a file beside the database, taken by the one writer of this
+    process that holds the in-process lock: writers of several server processes queue in
+    the kernel, which wakes the next one when the lock is released (SQLite's own busy
+    handler sleeps 1, 2, 5 ... 100 ms between tries). The kernel drops it if the process
+    dies, so a crash never leaves the database locked."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self._fd: int | None = None
+
+    def acquire(self) -> None:
+        if self._fd is None:
+            self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o600)
+        fcntl.flock(self._fd, fcntl.LOCK_EX)  # blocks without holding the interpreter lock
+
+    def release(self) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
