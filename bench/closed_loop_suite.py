@@ -8,10 +8,11 @@ First the server CPU per refused closed-loop answer (`--refusal-cost 300`), then
 1. SQLite, 1 server                          2. SQLite, 1 server, 2 attackers at their limits
 3. SQLite, 1 server, the live teacher `--suite-teacher` (default n_particles=250) instead
    of the offline default (what a researcher may choose in the study file; docs/study.md)
-4. SQLite, 2 servers (round robin)           5. SQLite, 2 servers, 2 attackers
+4. SQLite, 2 servers, each session on one    5. SQLite, 2 servers, 2 attackers
+   of them (`--sticky`)
 6. PostgreSQL, 1 server                      7. PostgreSQL, 1 server, 2 attackers
-8. PostgreSQL, 2 servers (round robin), N
-9+. capacity: PostgreSQL with 1 and with 2 servers at N/2, then N/4, each only while the
+8. PostgreSQL, 2 servers (round robin), N   9. PostgreSQL, 2 servers, sticky, N
+10+. capacity: PostgreSQL with 1 and with 2 servers at N/2, then N/4, each only while the
     larger size missed (the largest N tested with every p99 < 500 ms is the capacity)
 
 Rows 6+ need `--db postgresql+psycopg://...` (each run starts from an empty schema). The
@@ -39,21 +40,25 @@ ATTACK_RISE = 0.20
 CAPACITY_SHARES = (0.5, 0.25)
 
 
+#: Two servers, each participant on one of them (a proxy routing by session token).
+_STICKY_PAIR = ["--servers", "2", "--decision-workers", "1", "--sticky"]
+
+
 def _fixed_rows(args: argparse.Namespace) -> list[tuple[str, list[str]]]:
     n = str(args.participants)
     rows = [("sqlite", ["-n", n]),
             ("sqlite+attack", ["-n", n, "--attackers", "2"]),
             (f"sqlite, teacher {args.suite_teacher}", ["-n", n, "--teacher",
                                                        args.suite_teacher]),
-            ("sqlite 2 servers", ["-n", n, "--servers", "2", "--decision-workers", "1"]),
-            ("sqlite 2 servers+attack", ["-n", n, "--servers", "2", "--decision-workers", "1",
-                                         "--attackers", "2"])]
+            ("sqlite 2 servers", ["-n", n, *_STICKY_PAIR]),
+            ("sqlite 2 servers+attack", ["-n", n, *_STICKY_PAIR, "--attackers", "2"])]
     if _pg(args):
         pg = ["--db", args.db]
         rows += [("pg", [*pg, "-n", n]),
                  ("pg+attack", [*pg, "-n", n, "--attackers", "2"]),
                  ("pg 2 servers", [*pg, "-n", n, "--servers", "2",
-                                   "--decision-workers", "1"])]
+                                   "--decision-workers", "1"]),
+                 ("pg 2 servers, sticky", [*pg, "-n", n, *_STICKY_PAIR])]
     return rows
 
 
