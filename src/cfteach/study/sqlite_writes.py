@@ -211,3 +211,8 @@ class ProcessWriterLock:
     def release(self) -> None:
         if self._fd is not None:
             fcntl.flock(self._fd, fcntl.LOCK_UN)
+
+    def __del__(self) -> None:  # one per engine: closed with it, not kept for the process
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
