@@ -156,7 +156,7 @@ def test_a_failed_fsync_fails_the_commit(tmp_path: Path,
 _WRITER_SCRIPT = """
 import sys
 from sqlalchemy import event, text
-from cfteach.study.db import make_engine
+from cfteach.study.db import durable_barrier, make_engine
 engine = make_engine(sys.argv[1])
 
 @event.listens_for(engine, "connect")
@@ -167,6 +167,7 @@ for i in range(int(sys.argv[3])):
     with engine.begin() as conn:
         conn.execute(text("INSERT INTO t VALUES (:n)"), {"n": int(sys.argv[2]) * 1000 + i})
         conn.execute(text("SELECT count(*) FROM t")).scalar()  # hold the lock a little
+    durable_barrier(engine)  # as a page read does: the other process's commits too
 print("done")
 """
 
@@ -232,3 +233,29 @@ def test_a_read_waits_for_another_process_commit_to_be_durable(
     assert sync_b.fsyncs == before + 1  # and that fsync covers it
     a.dispose()
     b.dispose()
+
+
+def test_no_descriptor_of_sqlite_own_files_is_closed_under_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Closing any descriptor of the database or its -shm file drops every POSIX lock
+    SQLite holds on it in this process; other processes may then reset the shared index
+    under it (a first version that read the -shm header crashed a writer with SIGBUS).
+    Writes, fsyncs and barriers open only the log and the ledger beside the database."""
+    engine = _engine_without_busy_wait(tmp_path / "o.db")
+    opened: list[str] = []
+    real_open = os.open
+
+    def spy(path, *a, **k):  # noqa: ANN001, ANN002, ANN003, ANN202
+        opened.append(str(path))
+        return real_open(path, *a, **k)
+
+    monkeypatch.setattr(sqlite_writes.os, "open", spy)
+    other = make_engine(f"sqlite:///{tmp_path / 'o.db'}")  # a second ledger is opened
+    for i in range(3):
+        with engine.begin() as conn:
+            conn.execute(text("INSERT INTO t VALUES (:n)"), {"n": i})
+        _wal_sync(other).barrier()
+    base = str((tmp_path / "o.db").resolve())
+    assert opened and set(opened) <= {base + "-wal", base + "-writers"}
+    engine.dispose()
+    other.dispose()

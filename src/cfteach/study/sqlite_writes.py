@@ -16,15 +16,18 @@ profiled with py-spy):
 
 Several server processes may share one database file (docs/study.md, "Several server
 processes"): each process's queued writer also takes an exclusive `flock` on
-``<db>-writers``, which the kernel hands over at once, and a read that must answer only what
-is durable (`WalSync.barrier`) compares the log's index header, which every commit of every
-process changes, with the one an fsync of this process started from.
+``<db>-writers``, which the kernel hands over at once, and numbers its commit in that file
+(`CommitLedger`), so a read that must answer only what is durable (`WalSync.barrier`) knows
+whether another process has committed since this process's last fsync began. (Only our own
+file is opened: closing any descriptor of the database or its `-shm` file would drop
+SQLite's POSIX locks of the whole process.)
 """
 
 from __future__ import annotations
 
 import os
 import sqlite3
+import struct
 import threading
 
 try:
@@ -33,10 +36,8 @@ except ImportError:  # Windows: one server process per database file
     fcntl = None  # type: ignore[assignment]
 
 WRITE_WAIT_S = 30.0  # as SQLite's busy_timeout: then "database is locked"
-#: The WAL index header (https://www.sqlite.org/walformat.html, "The WAL-Index Header"):
-#: 48 bytes at the start of the -shm file; its frame count, salts and checksums change with
-#: every commit and every restart of the log, whichever process made them.
-WAL_INDEX_HEADER_BYTES = 48
+#: Each count in the ledger is stored with its complement: a torn read is seen as such.
+_CHECK = 0x5A5A_5A5A_5A5A_5A5A
 
 
 class NotDurable(OSError):
@@ -56,8 +57,9 @@ class WalSync:
         self.fsyncs = 0
         self.in_flight = 0  # COMMITs running now (visible to readers before they count)
         self._syncing = False
-        self.shm_path = db_path + "-shm"
-        self._synced_header: bytes | None = None  # the log's state when the last fsync began
+        # Commits of every process sharing the file (None where flock is missing: Windows)
+        self.ledger = CommitLedger(db_path + "-writers") if fcntl is not None else None
+        self._synced_upto = -1  # ledger: commits finished before this process's last fsync
 
     def begin_commit(self) -> None:
         """Call right before a write transaction's COMMIT."""
@@ -73,22 +75,10 @@ class WalSync:
         report stored data: a 409 duplicate, a page read). Free when all are already."""
         with self._cond:
             here = self.in_flight == 0 and self.durable >= self.committed
-            synced = self._synced_header
-        if here and synced is not None and self.log_state() == synced:
-            return  # nothing committed, by any process, since an fsync began
+            synced = self._synced_upto
+        if here and (self.ledger is None or self.ledger.started() <= synced):
+            return  # nothing committed, by any process, since an fsync of ours began
         self.wait_durable(after_commit=False)
-
-    def log_state(self) -> bytes | None:
-        """The WAL index header now (None when there is no index to read)."""
-        try:
-            fd = os.open(self.shm_path, os.O_RDONLY)
-        except OSError:
-            return None
-        try:
-            head = os.pread(fd, WAL_INDEX_HEADER_BYTES, 0)
-        finally:
-            os.close(fd)
-        return head if len(head) == WAL_INDEX_HEADER_BYTES else None
 
     def wait_durable(self, *, after_commit: bool = True) -> None:
         """Call right after a write transaction's COMMIT; returns once it is on disk.
@@ -106,24 +96,28 @@ class WalSync:
                 try:
                     self._cond.release()
                     try:
-                        state = self.log_state()  # before the fsync: what it will cover
+                        # before the fsync: the other processes' commits it will cover
+                        finished = self.ledger.finished() if self.ledger else -1
                         self._fsync()
                     except OSError as e:
                         raise NotDurable(f"fsync of {self.wal_path} failed: {e}") from e
                     finally:
                         self._cond.acquire()
                     self.durable = max(self.durable, upto)
-                    self._synced_header = state
+                    self._synced_upto = max(self._synced_upto, finished)
                 finally:
                     self._syncing = False
                     self._cond.notify_all()
 
     def _fsync(self) -> None:
         # Opened each time: SQLite may delete and recreate the log (last connection closed).
+        # Never the database file itself: closing a descriptor of it would drop SQLite's
+        # locks on it. A missing log was checkpointed, and SQLite synced the database then.
         try:
             fd = os.open(self.wal_path, os.O_RDONLY)
-        except FileNotFoundError:  # checkpointed into the database file and removed
-            fd = os.open(self.db_path, os.O_RDONLY)
+        except FileNotFoundError:
+            self.fsyncs += 1
+            return
         try:
             os.fsync(fd)
             self.fsyncs += 1
@@ -135,8 +129,7 @@ def connection_class(sync: WalSync | None) -> type[sqlite3.Connection]:
     """A sqlite3 connection class for one engine: queued writers, and durable commits
     through `sync` (None: SQLite syncs by itself, synchronous=FULL)."""
     lock = threading.Lock()
-    between_processes = (ProcessWriterLock(sync.db_path + "-writers")
-                         if sync is not None and fcntl is not None else None)
+    between_processes = sync.ledger if sync is not None else None
 
     class QueuedWriters(sqlite3.Connection):
         wal_sync = sync
@@ -164,10 +157,16 @@ def connection_class(sync: WalSync | None) -> type[sqlite3.Connection]:
 
         def commit(self) -> None:
             wal = sync if self.holds_write_lock else None  # a write to make durable
+            ledger = between_processes if self.holds_write_lock else None
             if wal is not None:
                 wal.begin_commit()
             try:
-                super().commit()
+                n = ledger.start() if ledger is not None else 0  # before it can be seen
+                try:
+                    super().commit()
+                finally:
+                    if ledger is not None:
+                        ledger.finish(n)
             except BaseException:
                 if wal is not None:
                     wal.abort_commit()
@@ -192,27 +191,59 @@ def connection_class(sync: WalSync | None) -> type[sqlite3.Connection]:
     return QueuedWriters
 
 
-class ProcessWriterLock:
-    """An exclusive `flock` on a file beside the database, taken by the one writer of this
-    process that holds the in-process lock: writers of several server processes queue in
-    the kernel, which wakes the next one when the lock is released (SQLite's own busy
-    handler sleeps 1, 2, 5 ... 100 ms between tries). The kernel drops it if the process
-    dies, so a crash never leaves the database locked."""
+class CommitLedger:
+    """The file beside the database that the server processes sharing it write through.
+
+    An exclusive `flock` on it is the writers' lock: taken by the one writer of this process
+    that holds the in-process lock, so the writers of several processes queue in the kernel,
+    which wakes the next one when it is released (SQLite's own busy handler sleeps 1, 2, 5
+    ... 100 ms between tries); the kernel drops it if the process dies. Under that lock each
+    writer numbers its commit: *started* n before its COMMIT, *finished* n after it. A commit
+    another process can see has started; an fsync covers every commit finished before it
+    began. The counts need no fsync: they only coordinate the processes running now."""
 
     def __init__(self, path: str) -> None:
         self.path = path
-        self._fd: int | None = None
+        self._fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
 
     def acquire(self) -> None:
-        if self._fd is None:
-            self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o600)
         fcntl.flock(self._fd, fcntl.LOCK_EX)  # blocks without holding the interpreter lock
 
     def release(self) -> None:
-        if self._fd is not None:
-            fcntl.flock(self._fd, fcntl.LOCK_UN)
+        fcntl.flock(self._fd, fcntl.LOCK_UN)
+
+    def _read(self) -> tuple[int, int] | None:
+        raw = os.pread(self._fd, 32, 0)
+        if not raw:
+            return 0, 0  # a new file: nothing committed through it yet
+        if len(raw) != 32:
+            return None
+        s, s_check, f, f_check = struct.unpack("<4Q", raw)
+        return (s, f) if s ^ _CHECK == s_check and f ^ _CHECK == f_check else None
+
+    def started(self) -> int:
+        """The last commit started by any process (a torn read counts as a new commit)."""
+        counts = self._read()
+        return 2**63 if counts is None else counts[0]
+
+    def finished(self) -> int:
+        """The last commit finished by any process (-1 after a torn read: none known)."""
+        counts = self._read()
+        return -1 if counts is None else counts[1]
+
+    def start(self) -> int:
+        """Under the lock: number the next commit (after a writer that died mid-commit too)."""
+        counts = self._read()
+        # Unreadable even under the lock (a damaged file): jump far ahead of any count a
+        # running process may have seen, so none takes a later commit for a synced one.
+        n = max(counts) + 1 if counts is not None else 2**62
+        os.pwrite(self._fd, struct.pack("<2Q", n, n ^ _CHECK), 0)
+        return n
+
+    def finish(self, n: int) -> None:
+        os.pwrite(self._fd, struct.pack("<2Q", n, n ^ _CHECK), 16)
 
     def __del__(self) -> None:  # one per engine: closed with it, not kept for the process
-        if self._fd is not None:
-            os.close(self._fd)
-            self._fd = None
+        fd, self._fd = getattr(self, "_fd", -1), -1
+        if fd >= 0:
+            os.close(fd)
