@@ -197,7 +197,9 @@ class CommitLedger:
     An exclusive `flock` on it is the writers' lock: taken by the one writer of this process
     that holds the in-process lock, so the writers of several processes queue in the kernel,
     which wakes the next one when it is released (SQLite's own busy handler sleeps 1, 2, 5
-    ... 100 ms between tries); the kernel drops it if the process dies. Under that lock each
+    ... 100 ms between tries); the kernel drops it if the process dies, but it has no time
+    limit: a process stopped (not killed) inside a write stalls the others' writes until it
+    runs again, where SQLite's busy timeout would have failed them. Under that lock each
     writer numbers its commit: *started* n before its COMMIT, *finished* n after it. A commit
     another process can see has started; an fsync covers every commit finished before it
     began. The counts need no fsync: they only coordinate the processes running now."""
