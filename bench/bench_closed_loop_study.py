@@ -7,7 +7,8 @@ with a skateboard study (placeholder post-tests from `--preview`; the teacher wi
 default 1,000 particles), runs every participant at once from consent to completion, each
 waiting `--pace` s between its events (starts spread over the first interval), and times
 every request. With several servers each request goes to the next server in turn (a proxy
-without sticky sessions: the hardest case for consistency). Prints p50/p99 of the page
+without sticky sessions: the hardest case for consistency), or with --sticky each session
+to one of them. Prints p50/p99 of the page
 (GET /api/state), of every event (POST), and of the closed-loop decisions (from an
 `item_done` POST until the page has the next item, through the "preparing" answers and
 `GET /api/state?wait=` calls that wait for it), then checks in the database that every
@@ -146,7 +147,7 @@ def main() -> int:
     ap.add_argument("--conditions", default="closed_loop,proposed",
                     help="study conditions (assignment balances over them)")
     ap.add_argument("--servers", type=int, default=1, help="`cfteach serve` processes on "
-                    "the one database (PostgreSQL for more than one)")
+                    "the one database (SQLite or PostgreSQL)")
     ap.add_argument("--decision-workers", type=int, default=2, help="per server")
     ap.add_argument("--sticky", action="store_true", help="with --servers > 1, send each "
                     "participant's requests to one server (as a proxy routing by session "
